@@ -1,0 +1,69 @@
+"""Policies built from rules: one rule per robot, or a chooser that picks a rule first."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from policies.rules import RULES
+from twin.decision import Decision, RobotSpec
+
+
+class RuleChoosingPolicy:
+    """A policy that first picks a rule for the deciding robot, then lets the rule pick.
+
+    Subclasses override :meth:`select_rule`; this is the shape of the HDQN meta-controller.
+    The chosen rule's name is recorded on the decision.
+    """
+
+    name = "rule-choosing"
+
+    def __init__(self) -> None:
+        self.robots: list[RobotSpec] = []
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
+        self.robots = list(robots)
+        self.rng = rng
+
+    def select_rule(self, decision: Decision) -> str:
+        raise NotImplementedError
+
+    def choose(self, decision: Decision) -> int:
+        rule = self.select_rule(decision)
+        decision.rule = rule
+        return RULES[rule](decision, self.rng)
+
+
+class RuleMix(RuleChoosingPolicy):
+    """A fixed rule per robot: ``RuleMix(["SPT", "SPT", "SPT", "FIFO"])``, or one for all."""
+
+    def __init__(self, rules: Sequence[str]) -> None:
+        super().__init__()
+        self.rules = [r.upper() for r in rules]
+        self.name = self.rules[0] if len(set(self.rules)) == 1 else ",".join(self.rules)
+
+    def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
+        super().reset(robots, rng)
+        if len(self.rules) == 1:
+            self.rules = self.rules * len(robots)
+        elif len(self.rules) != len(robots):
+            raise ValueError(
+                f"policy: the mix {','.join(self.rules)} names {len(self.rules)} rules for "
+                f"{len(robots)} robots; give one rule or one per robot"
+            )
+
+    def select_rule(self, decision: Decision) -> str:
+        return self.rules[decision.robot]
+
+
+class SettableRules(RuleMix):
+    """A rule per robot that a driver (an RL environment) sets before each decision."""
+
+    def __init__(self, n_robots: int, default: str = "FIFO") -> None:
+        super().__init__([default] * n_robots)
+        self.name = "external"
+
+    def set(self, robot: int, rule: str) -> None:
+        self.rules[robot] = rule

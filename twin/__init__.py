@@ -1,0 +1,16 @@
+"""pnp-twin: a discrete-event digital twin of multi-robot conveyor pick-and-place lines.
+
+The simulation core (this package, minus the command line) never imports a policy.
+"""
+
+from twin.decision import Decision, Policy, RobotSpec
+from twin.loader import ScenarioError, load_scenario, with_overrides
+from twin.run import RunResult, simulate
+from twin.scenario import Scenario
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Decision", "Policy", "RobotSpec", "RunResult", "Scenario", "ScenarioError",
+    "load_scenario", "simulate", "with_overrides",
+]

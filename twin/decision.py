@@ -1,0 +1,81 @@
+"""The decision record the gateway hands to a policy, and the policy protocol.
+
+The twin never imports a policy: it builds a :class:`Decision` (plain data) whenever a free
+robot has candidates and asks the policy object for the index of the part to pick.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@dataclass(frozen=True, slots=True)
+class RobotSpec:
+    """What a policy may know about the robot that decides (all SI units)."""
+
+    index: int  # 0-based, upstream first
+    count: int  # robots on the line
+    workspace: tuple[float, float]  # [a, b] along the belt, m
+    bin: tuple[float, float]  # place target (x, y), m
+    arm_speed: float  # m/s
+    acceleration: float  # m/s^2, 0 = none
+    pick_time: float  # s
+    place_time: float  # s
+    belt_speed: float  # m/s
+    belt_width: float  # m
+
+
+class Decision:
+    """One free robot's choice among candidates, at one instant.
+
+    Candidates are listed furthest downstream first (the order they entered the
+    workspace). ``xs``/``ys`` are the parts' positions now, ``times`` the interception
+    times from the tool position ``tool``. A policy may set ``rule`` to name the rule that
+    made the choice (counted in the KPIs as decisions per rule).
+    """
+
+    __slots__ = ("robot", "spec", "time", "tool", "parts", "xs", "ys", "times", "rule")
+
+    def __init__(
+        self,
+        spec: RobotSpec,
+        time: float,
+        tool: tuple[float, float],
+        parts: list[int],
+        xs: list[float],
+        ys: list[float],
+        times: list[float],
+    ) -> None:
+        self.robot = spec.index
+        self.spec = spec
+        self.time = time
+        self.tool = tool
+        self.parts = parts
+        self.xs = xs
+        self.ys = ys
+        self.times = times
+        self.rule: str | None = None
+
+    def __len__(self) -> int:
+        return len(self.parts)
+
+    def __repr__(self) -> str:
+        return (
+            f"Decision(robot={self.robot}, time={self.time:.4f}, "
+            f"candidates={len(self.parts)}, rule={self.rule})"
+        )
+
+
+@runtime_checkable
+class Policy(Protocol):
+    """Anything with ``reset`` and ``choose`` can drive the line."""
+
+    def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
+        """Called once before a run with the robots and the run's policy stream."""
+
+    def choose(self, decision: Decision) -> int:
+        """Index into ``decision.parts`` of the part to pick (there is at least one)."""
+        ...

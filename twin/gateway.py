@@ -1,0 +1,133 @@
+"""The gateway: decision events, termination schemes, and the hand-off to a policy.
+
+Whenever a robot is free it reports to the gateway, which decides *when* it may choose
+(the termination scheme) and asks the policy *what* to choose:
+
+- ``t_continue``: each robot decides the moment it is free; the others continue.
+- ``t_all``: a free robot waits until every available robot is free; then all decide, in
+  robot order (upstream first), each seeing the claims of those before it.
+- ``t_any``: the first free robot opens a decision epoch; every robot still on its approach
+  leg is interrupted (claim released, tool stops where it is) and joins it; robots carrying
+  a part finish placing first and open the next epoch when they are free.
+
+With ``hold=True`` every epoch pauses the simulation: :attr:`pending` lists the robots that
+decide and the driver (a Gymnasium or PettingZoo environment) calls :meth:`release` once it
+has set the policy's answer. Without it, decisions cost no extra event under t_continue.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import TYPE_CHECKING
+
+import simpy
+
+from twin.decision import Decision, Policy
+from twin.records import Recorder
+
+if TYPE_CHECKING:
+    from twin.robot import Robot
+
+SCHEMES = ("t_continue", "t_all", "t_any")
+
+
+class Gateway:
+    """Yields decision events to a policy according to a termination scheme."""
+
+    def __init__(
+        self,
+        env: simpy.Environment,
+        scheme: str,
+        policy: Policy,
+        recorder: Recorder,
+        hold: bool = False,
+    ) -> None:
+        if scheme not in SCHEMES:
+            raise ValueError(f"termination: {scheme!r} is not a scheme; allowed {SCHEMES}")
+        self.env = env
+        self.scheme = scheme
+        self.policy = policy
+        self.recorder = recorder
+        self.hold = hold
+        self.robots: list[Robot] = []
+        self.waiting: dict[int, simpy.Event] = {}  # robot index -> its release event
+        self.expected: set[int] = set()  # t_any: robots the open epoch waits for
+        self.pending: list[int] = []  # robots of the epoch the driver must answer
+        self.epochs = 0
+        self.noops: Counter[int] = Counter()
+
+    # -- called by robots --------------------------------------------------------------------
+    def free(self, robot: Robot) -> simpy.Event | None:
+        """A robot is free: None to decide now, or an event to wait for."""
+        if self.scheme == "t_continue" and not self.hold:
+            return None
+        event = self.env.event()
+        self.waiting[robot.index] = event
+        if self.scheme == "t_continue":
+            self._open([robot.index])
+        elif self.scheme == "t_all":
+            self._maybe_all()
+        else:
+            self._join_any(robot)
+        return event
+
+    def choose(self, robot: Robot, decision: Decision) -> int:
+        k = self.policy.choose(decision)
+        if not 0 <= k < len(decision.parts):
+            raise IndexError(
+                f"policy {type(self.policy).__name__} chose candidate {k} of "
+                f"{len(decision.parts)} for robot {robot.index}"
+            )
+        self.recorder.decisions[(robot.index, decision.rule or "?")] += 1
+        return k
+
+    def noop(self, robot: Robot) -> None:
+        self.recorder.decisions[(robot.index, "NooP")] += 1
+
+    def down(self, robot: Robot) -> None:
+        """A robot broke down: under t_all the others must not wait for it."""
+        self.waiting.pop(robot.index, None)
+        self.expected.discard(robot.index)
+        if self.scheme == "t_all":
+            self._maybe_all()
+        elif self.scheme == "t_any" and self.expected and self.expected <= set(self.waiting):
+            self._open(sorted(self.expected))
+
+    # -- epochs ------------------------------------------------------------------------------
+    def _maybe_all(self) -> None:
+        available = [r.index for r in self.robots if not r.down]
+        if available and all(i in self.waiting for i in available):
+            self._open(available)
+
+    def _join_any(self, robot: Robot) -> None:
+        if not self.expected:
+            now = self.env.now
+            self.expected = {robot.index}
+            for other in self.robots:
+                if other is not robot and other.claimed >= 0 and other.approach_until > now:
+                    assert other.process is not None
+                    other.process.interrupt("t_any")
+                    self.expected.add(other.index)
+        else:
+            self.expected.add(robot.index)
+        if self.expected <= set(self.waiting):
+            robots = sorted(self.expected)
+            self.expected = set()
+            self._open(robots)
+
+    def _open(self, robots: list[int]) -> None:
+        self.epochs += 1
+        if self.hold:
+            self.pending.extend(robots)
+            return
+        self._succeed(robots)
+
+    def release(self) -> list[int]:
+        """Resume the robots of the pending epoch (hold mode); returns them."""
+        robots, self.pending = sorted(self.pending), []
+        self._succeed(robots)
+        return robots
+
+    def _succeed(self, robots: list[int]) -> None:
+        for i in robots:  # in robot order, so upstream robots claim first
+            self.waiting.pop(i).succeed()

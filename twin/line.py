@@ -1,0 +1,106 @@
+"""The line: a scenario turned into a SimPy model (belt, feeder, robots, bins, gateway)."""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+import simpy
+
+from twin.belt import Belt
+from twin.bin import Bin
+from twin.decision import Policy, RobotSpec
+from twin.feeder import Feeder
+from twin.gateway import Gateway
+from twin.records import Recorder
+from twin.robot import Robot
+from twin.scenario import Scenario
+
+log = logging.getLogger(__name__)
+
+DRAIN_SLACK = 30.0  # s after the last part passed the last workspace, for the last places
+
+
+def robot_specs(scenario: Scenario) -> list[RobotSpec]:
+    """Each robot's resolved parameters (shared defaults with per-robot overrides)."""
+    out = []
+    belt = scenario.belt
+    for i, (a, b) in enumerate(scenario.robots.layout()):
+        p = lambda name, i=i: scenario.robot_param(i + 1, name)  # noqa: E731
+        dx, dy = p("bin_offset")
+        out.append(
+            RobotSpec(
+                index=i,
+                count=scenario.robots.count,
+                workspace=(a, b),
+                bin=((a + b) / 2.0 + dx, belt.width + dy),
+                arm_speed=float(p("arm_speed")),
+                acceleration=float(p("acceleration")),
+                pick_time=float(p("pick_time")),
+                place_time=float(p("place_time")),
+                belt_speed=belt.speed,
+                belt_width=belt.width,
+            )
+        )
+    return out
+
+
+class Line:
+    """One run of one scenario with one policy; ``streams`` are the run's random streams.
+
+    The seed is split into independent child streams (feeder arrivals, lateral positions,
+    policy, one per robot for breakdowns), so the part stream does not depend on the policy.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        policy: Policy,
+        seed: int | None = None,
+        hold: bool = False,
+        duration: float | None = None,
+    ) -> None:
+        self.scenario = scenario
+        self.seed = scenario.seed if seed is None else seed
+        self.duration = scenario.duration if duration is None else duration
+        n = scenario.robots.count
+        streams = [np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(3 + n)]
+        self.env = simpy.Environment()
+        b = scenario.belt
+        self.belt = Belt(b.length, b.width, b.speed, b.grid)
+        feeder = Feeder(scenario.feeder, b.width, streams[0], streams[1], scenario.source_dir)
+        self.belt.load(*feeder.stream(self.duration))
+        self.recorder = Recorder(len(self.belt))
+        self.specs = robot_specs(scenario)
+        self.policy = policy
+        policy.reset(self.specs, streams[2])
+        self.gateway = Gateway(self.env, scenario.termination, policy, self.recorder, hold)
+        self.robots: list[Robot] = []
+        for spec in self.specs:
+            i = spec.index + 1
+            mtbf, mttr = scenario.robot_param(i, "mtbf"), scenario.robot_param(i, "mttr")
+            failures = None
+            if mtbf > 0:
+                failures = (mtbf, mttr, scenario.robots.failure_distribution, streams[3 + spec.index])
+            bin_ = Bin(spec.bin, scenario.bins.capacity, scenario.bins.change_time)
+            robot = Robot(self.env, spec, self.belt, bin_, self.recorder, failures)
+            self.robots.append(robot)
+        self.gateway.robots = self.robots
+        for robot in self.robots:
+            robot.start(self.gateway)
+        self.last_end = self.specs[-1].workspace[1]
+        change = scenario.bins.change_time
+        self.end_at = self.duration + self.last_end / b.speed + DRAIN_SLACK + change
+
+    def run(self) -> None:
+        """Feed for ``duration`` seconds, then drain until every part has an outcome."""
+        log.debug("running %s seed %d until t=%.1f", self.scenario.name, self.seed, self.end_at)
+        self.env.run(until=self.end_at)
+
+    @property
+    def now(self) -> float:
+        return float(self.env.now)
+
+    def is_drained(self) -> bool:
+        return math.isfinite(self.end_at) and self.env.now >= self.end_at
