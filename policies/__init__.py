@@ -5,6 +5,11 @@ from policies.registry import PolicyError, make_policy
 from policies.rules import PAPER_RULES, RULES
 
 __all__ = [
-    "PAPER_RULES", "RULES", "PolicyError", "RuleChoosingPolicy", "RuleMix", "SettableRules",
+    "PAPER_RULES",
+    "RULES",
+    "PolicyError",
+    "RuleChoosingPolicy",
+    "RuleMix",
+    "SettableRules",
     "make_policy",
 ]

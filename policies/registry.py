@@ -7,6 +7,7 @@ from collections.abc import Callable
 from policies.base import RuleMix
 from policies.rules import RULES
 from twin.decision import Policy
+from twin.errors import UserError
 
 Factory = Callable[[str], Policy]
 
@@ -14,7 +15,7 @@ Factory = Callable[[str], Policy]
 PREFIXED: dict[str, Factory] = {}
 
 
-class PolicyError(ValueError):
+class PolicyError(UserError):
     """An unknown policy name or a malformed mix; the message is one line."""
 
 

@@ -11,6 +11,13 @@ from twin.scenario import Scenario
 __version__ = "0.1.0"
 
 __all__ = [
-    "Decision", "Policy", "RobotSpec", "RunResult", "Scenario", "ScenarioError",
-    "load_scenario", "simulate", "with_overrides",
+    "Decision",
+    "Policy",
+    "RobotSpec",
+    "RunResult",
+    "Scenario",
+    "ScenarioError",
+    "load_scenario",
+    "simulate",
+    "with_overrides",
 ]

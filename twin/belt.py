@@ -62,8 +62,14 @@ class Belt:
             return math.inf
         return fed[i] + x / v - now
 
-    def image(self, now: float, x_lo: float = 0.0, x_hi: float | None = None,
-              cells: tuple[int, int] | None = None, free_only: bool = False) -> np.ndarray:
+    def image(
+        self,
+        now: float,
+        x_lo: float = 0.0,
+        x_hi: float | None = None,
+        cells: tuple[int, int] | None = None,
+        free_only: bool = False,
+    ) -> np.ndarray:
         """Occupancy grid (cells across, cells along) of the stretch [x_lo, x_hi] at ``now``.
 
         Row 0 is the lower belt edge; column 0 is x_lo. A part is on the belt from its fed

@@ -14,12 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
+from twin.errors import UserError
 from twin.scenario import FeederConfig
 
 log = logging.getLogger(__name__)
 
 
-class TraceError(ValueError):
+class TraceError(UserError):
     """A trace file that cannot be replayed; the message is one line."""
 
 

@@ -26,7 +26,9 @@ def intercept_time(
     part's position at T is at most T, found by stepping and bisection.
     """
     a = arm_speed * arm_speed - belt_speed * belt_speed
-    t = (dx * belt_speed + math.sqrt(dx * dx * belt_speed * belt_speed + a * (dx * dx + dy * dy))) / a
+    t = (
+        dx * belt_speed + math.sqrt(dx * dx * belt_speed * belt_speed + a * (dx * dx + dy * dy))
+    ) / a
     if acceleration <= 0.0:
         return t
 

@@ -24,7 +24,9 @@ from twin.geometry import move_time
 STATES = ("busy", "noop", "wait", "blocked", "down")
 
 
-def clipped(start: pd.Series | np.ndarray, end: pd.Series | np.ndarray, w0: float, w1: float) -> np.ndarray:
+def clipped(
+    start: pd.Series | np.ndarray, end: pd.Series | np.ndarray, w0: float, w1: float
+) -> np.ndarray:
     """Length of each interval [start, end] inside [w0, w1]."""
     s = np.maximum(np.asarray(start, dtype=float), w0)
     e = np.minimum(np.asarray(end, dtype=float), w1)
@@ -35,10 +37,16 @@ def robot_capacity(spec: RobotSpec) -> float:
     """Picks per second of the shortest possible cycle (see module docstring)."""
     gap = max(spec.bin[1] - spec.belt_width, 0.0)
     trip = 2.0 * move_time(gap, spec.arm_speed, spec.acceleration)
-    return 1.0 / (spec.pick_time + spec.place_time + trip) if trip + spec.pick_time + spec.place_time > 0 else math.inf
+    return (
+        1.0 / (spec.pick_time + spec.place_time + trip)
+        if trip + spec.pick_time + spec.place_time > 0
+        else math.inf
+    )
 
 
-def state_times(parts: pd.DataFrame, spans: pd.DataFrame, n: int, w0: float, w1: float) -> np.ndarray:
+def state_times(
+    parts: pd.DataFrame, spans: pd.DataFrame, n: int, w0: float, w1: float
+) -> np.ndarray:
     """(n robots x STATES) seconds spent in each state inside the window."""
     out = np.zeros((n, len(STATES)))
     picked = parts[parts["outcome"] == "picked"]

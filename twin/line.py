@@ -82,7 +82,12 @@ class Line:
             mtbf, mttr = scenario.robot_param(i, "mtbf"), scenario.robot_param(i, "mttr")
             failures = None
             if mtbf > 0:
-                failures = (mtbf, mttr, scenario.robots.failure_distribution, streams[3 + spec.index])
+                failures = (
+                    mtbf,
+                    mttr,
+                    scenario.robots.failure_distribution,
+                    streams[3 + spec.index],
+                )
             bin_ = Bin(spec.bin, scenario.bins.capacity, scenario.bins.change_time)
             robot = Robot(self.env, spec, self.belt, bin_, self.recorder, failures)
             self.robots.append(robot)

@@ -13,6 +13,7 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
+from twin.errors import UserError
 from twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -20,16 +21,14 @@ log = logging.getLogger(__name__)
 SUFFIXES = (".toml", ".yaml", ".yml")
 
 
-class ScenarioError(ValueError):
+class ScenarioError(UserError):
     """A user mistake in a scenario or an override; its message is one line for the CLI."""
 
 
 def shipped_scenarios() -> list[str]:
     """Names of the scenarios shipped with the package (usable without a path)."""
     root = resources.files("scenarios")
-    return sorted(
-        Path(p.name).stem for p in root.iterdir() if p.name.endswith(SUFFIXES)
-    )
+    return sorted(Path(p.name).stem for p in root.iterdir() if p.name.endswith(SUFFIXES))
 
 
 def find_scenario(name_or_path: str | Path) -> Path:
@@ -135,9 +134,7 @@ def validate(data: Mapping[str, Any], source_dir: str | None = None) -> Scenario
         raise ScenarioError(_format_error(e)) from None
 
 
-def load_scenario(
-    name_or_path: str | Path, overrides: Mapping[str, Any] | None = None
-) -> Scenario:
+def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Load, override and validate a scenario file or shipped scenario name."""
     path = find_scenario(name_or_path)
     data = read_mapping(path)

@@ -11,8 +11,18 @@ import pandas as pd
 from twin.belt import Belt
 
 PART_COLUMNS = [
-    "part", "fed_at", "y", "kind", "outcome", "robot", "rule",
-    "decided_at", "picked_at", "placed_at", "blocked_time", "left_at",
+    "part",
+    "fed_at",
+    "y",
+    "kind",
+    "outcome",
+    "robot",
+    "rule",
+    "decided_at",
+    "picked_at",
+    "placed_at",
+    "blocked_time",
+    "left_at",
 ]
 SPAN_COLUMNS = ["robot", "state", "start", "end"]
 

@@ -46,7 +46,13 @@ def simulate(
     spans = rec.spans_frame()
     kpis = compute_kpis(parts, spans, line.specs, scenario.warmup, line.duration)
     name = policy_name or getattr(policy, "name", type(policy).__name__)
-    kpis = {"scenario": scenario.name, "policy": name, "seed": line.seed,
-            "termination": scenario.termination, **kpis}
-    return RunResult(scenario, name, line.seed, kpis, parts, spans, rec.decisions_frame(),
-                     wall, line.now)
+    kpis = {
+        "scenario": scenario.name,
+        "policy": name,
+        "seed": line.seed,
+        "termination": scenario.termination,
+        **kpis,
+    }
+    return RunResult(
+        scenario, name, line.seed, kpis, parts, spans, rec.decisions_frame(), wall, line.now
+    )

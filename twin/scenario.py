@@ -30,8 +30,8 @@ class BeltConfig(Frozen):
     length: PositiveFloat = Field(2.4, description="Belt length L in m, from the feeder (x=0).")
     width: PositiveFloat = Field(0.4, description="Belt width W in m (y from 0 to W).")
     speed: PositiveFloat = Field(0.8, description="Belt speed v_b in m/s.")
-    grid: tuple[Annotated[int, Field(ge=1, le=4096)], Annotated[int, Field(ge=1, le=1024)]] = (
-        Field((64, 8), description="Observation grid: cells along the belt, cells across.")
+    grid: tuple[Annotated[int, Field(ge=1, le=4096)], Annotated[int, Field(ge=1, le=1024)]] = Field(
+        (64, 8), description="Observation grid: cells along the belt, cells across."
     )
 
 
