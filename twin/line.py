@@ -75,6 +75,9 @@ class Line:
         self.specs = robot_specs(scenario)
         self.policy = policy
         policy.reset(self.specs, streams[2])
+        attach = getattr(policy, "attach", None)
+        if callable(attach):  # policies that look at the belt (the learned one) get it here
+            attach(self.belt)
         self.gateway = Gateway(self.env, scenario.termination, policy, self.recorder, hold)
         self.robots: list[Robot] = []
         for spec in self.specs:
