@@ -73,12 +73,14 @@ class Gateway:
 
     def choose(self, robot: Robot, decision: Decision) -> int:
         k = self.policy.choose(decision)
-        if not 0 <= k < len(decision.parts):
+        if k < 0 or k >= len(decision.parts):
             raise IndexError(
                 f"policy {type(self.policy).__name__} chose candidate {k} of "
                 f"{len(decision.parts)} for robot {robot.index}"
             )
-        self.recorder.decisions[(robot.index, decision.rule or "?")] += 1
+        key = (robot.index, decision.rule or "?")
+        counts = self.recorder.decisions
+        counts[key] = counts.get(key, 0) + 1
         return k
 
     def noop(self, robot: Robot) -> None:

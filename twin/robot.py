@@ -69,13 +69,17 @@ class Robot:
     # -- candidates -------------------------------------------------------------------------
     def decision(self) -> Decision:
         """The candidates now: unclaimed parts whose interception point lies in [a, b]."""
-        now = self.env.now
+        return Decision(self.spec, self.env.now, self.tool, *self._candidates(self.env.now))
+
+    def _candidates(self, now: float) -> tuple[list[int], list[float], list[float], list[float]]:
         belt = self.belt
         v = belt.speed
         fed, ys_all, holder = belt.fed, belt.y, belt.holder
         px, py = self.tool
         a, b, quad = self.a, self.b, self._quad
         acc = self.spec.acceleration
+        vv = v * v
+        vnow = v * now
         parts: list[int] = []
         xs: list[float] = []
         ys: list[float] = []
@@ -83,21 +87,20 @@ class Robot:
         for i in belt.span(now, self.x_lo, b):
             if holder[i] != FREE:
                 continue
-            x = v * (now - fed[i])
+            x = vnow - v * fed[i]
             y = ys_all[i]
             dx = x - px
             dy = y - py
             if acc > 0.0:
                 t = intercept_time(dx, dy, v, self.spec.arm_speed, acc)
             else:
-                t = (dx * v + math.sqrt(dx * dx * v * v + quad * (dx * dx + dy * dy))) / quad
-            xi = x + v * t
-            if a <= xi <= b:
+                t = (dx * v + math.sqrt(dx * dx * vv + quad * (dx * dx + dy * dy))) / quad
+            if a <= x + v * t <= b:
                 parts.append(i)
                 xs.append(x)
                 ys.append(y)
                 times.append(t)
-        return Decision(self.spec, now, self.tool, parts, xs, ys, times)
+        return parts, xs, ys, times
 
     # -- the cycle -------------------------------------------------------------------------
     def working(self) -> Generator[simpy.Event, Any, None]:
@@ -105,6 +108,10 @@ class Robot:
         assert gw is not None
         belt, bin_, me = self.belt, self.bin, self.index
         v = belt.speed
+        v_r, acc, pick = spec.arm_speed, spec.acceleration, spec.pick_time
+        bx, by = bin_.position
+        timeout = env.timeout
+        holder, left_at = belt.holder, belt.left_at
         while True:
             if env.now >= self.next_failure_at:
                 yield from self._breaking_down()
@@ -113,42 +120,41 @@ class Robot:
                 t0 = env.now
                 yield hold
                 rec.span(me, "wait", t0, env.now)
-            d = self.decision()
-            if not d.parts:
+            t0 = env.now
+            found = self._candidates(t0)
+            if not found[0]:
                 yield from self._noop()
                 continue
+            d = Decision(spec, t0, self.tool, *found)
             k = gw.choose(self, d)
             part, t = d.parts[k], d.times[k]
-            t0 = env.now
-            target = (d.xs[k] + v * t, d.ys[k])
-            belt.holder[part] = me
-            belt.left_at[part] = t0 + t
+            tx, ty = d.xs[k] + v * t, d.ys[k]
+            holder[part] = me
+            left_at[part] = t0 + t
             self.claimed = part
             self.approach_until = t0 + t
             try:
-                yield env.timeout(t + spec.pick_time)
+                yield timeout(t + pick)
             except simpy.Interrupt:
-                belt.holder[part] = FREE
-                belt.left_at[part] = math.inf
+                holder[part] = FREE
+                left_at[part] = math.inf
                 self.claimed = -1
                 rec.span(me, "interrupted", t0, env.now)
-                self.tool = position_along(
-                    self.tool, target, env.now - t0, spec.arm_speed, spec.acceleration
-                )
+                self.tool = position_along(self.tool, (tx, ty), env.now - t0, v_r, acc)
                 continue
             self.claimed = -1
             rec.robot[part] = me
             rec.rule[part] = d.rule
             rec.decided_at[part] = t0
             rec.picked_at[part] = t0 + t
-            dist = math.hypot(bin_.position[0] - target[0], bin_.position[1] - target[1])
-            arrive = env.now + move_time(dist, spec.arm_speed, spec.acceleration)
+            dist = math.hypot(bx - tx, by - ty)
+            arrive = env.now + (dist / v_r if acc <= 0.0 else move_time(dist, v_r, acc))
             blocked, done = bin_.place(arrive, spec.place_time)
-            rec.blocked[part] = blocked
             rec.placed_at[part] = done
             if blocked > 0.0:
+                rec.blocked[part] = blocked
                 rec.span(me, "blocked", arrive, arrive + blocked)
-            yield env.timeout(done - env.now)
+            yield timeout(done - env.now)
             self.tool = bin_.position
 
     def _noop(self) -> Generator[simpy.Event, Any, None]:

@@ -1,0 +1,171 @@
+"""Writing results to files: tables (CSV or Parquet by suffix), JSON and text, atomically.
+
+Every writer goes through a temporary file in the target's folder and ``os.replace``, so a
+reader never sees a half-written file and an interrupted run leaves the old file intact. A
+missing parent folder is created. Mistakes in a user-given path (an unknown table suffix, a
+folder that cannot be written) raise :class:`OutputError`, whose message is one line.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import tempfile
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from twin.errors import UserError
+
+TABLE_SUFFIXES = (".csv", ".parquet")
+
+
+class OutputError(UserError):
+    """A result file that cannot be written where or how the user asked; one line."""
+
+
+def check_table_path(path: str | Path, option: str = "output") -> Path:
+    """``path`` as a Path if its suffix names a table format, else an OutputError."""
+    p = Path(path)
+    if p.suffix.lower() not in TABLE_SUFFIXES:
+        raise OutputError(
+            f"{option}: '{p}' has suffix '{p.suffix}'; allowed {', '.join(TABLE_SUFFIXES)}"
+        )
+    return p
+
+
+@contextmanager
+def _atomic(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on success it replaces ``path``."""
+    target = Path(path)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as e:
+        raise OutputError(f"cannot write '{target}': {e.strerror or e}") from None
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        yield tmp
+        os.replace(tmp, target)
+    except OSError as e:
+        raise OutputError(f"cannot write '{target}': {e.strerror or e}") from None
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def write_text(text: str, path: str | Path) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically; return the path."""
+    with _atomic(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def write_json(obj: Any, path: str | Path, indent: int | None = 2) -> Path:
+    """Write ``obj`` as strict JSON (NaN and infinities become null) atomically."""
+    return write_text(dumps_json(obj, indent) + "\n", path)
+
+
+def write_table(df: pd.DataFrame, path: str | Path, option: str = "output") -> Path:
+    """Write ``df`` as CSV or Parquet, chosen by the suffix of ``path``, atomically."""
+    p = check_table_path(path, option)
+    writers: dict[str, Callable[[Path], Any]] = {
+        ".csv": lambda tmp: df.to_csv(tmp, index=False),
+        ".parquet": lambda tmp: df.to_parquet(tmp, index=False),
+    }
+    with _atomic(p) as tmp:
+        writers[p.suffix.lower()](tmp)
+    return p
+
+
+def jsonable(obj: Any) -> Any:
+    """``obj`` with numpy scalars made plain and NaN / infinities replaced by None."""
+    if isinstance(obj, Mapping):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple | np.ndarray):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if obj is pd.NA:
+        return None
+    return obj
+
+
+def dumps_json(obj: Any, indent: int | None = None) -> str:
+    """Strict JSON text of ``obj`` (see :func:`jsonable`)."""
+    return json.dumps(jsonable(obj), indent=indent, allow_nan=False)
+
+
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def dumps_toml(data: Mapping[str, Any]) -> str:
+    """TOML text of a nested mapping of scalars, lists, tables and lists of tables.
+
+    ``None`` values are left out (TOML has no null). Enough for scenario files; not a general
+    TOML writer.
+    """
+    lines: list[str] = []
+    _toml_table(data, [], lines)
+    return "\n".join(lines).strip("\n") + "\n"
+
+
+def _toml_key(key: str) -> str:
+    return key if _BARE_KEY.match(key) else json.dumps(key, ensure_ascii=False)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, Mapping):
+        inner = ", ".join(
+            f"{_toml_key(str(k))} = {_toml_value(v)}" for k, v in value.items() if v is not None
+        )
+        return "{ " + inner + " }" if inner else "{}"
+    raise TypeError(f"cannot write {type(value).__name__} as TOML")
+
+
+def _is_table_list(value: Any) -> bool:
+    return (
+        isinstance(value, list | tuple)
+        and len(value) > 0
+        and all(isinstance(v, Mapping) for v in value)
+    )
+
+
+def _toml_table(data: Mapping[str, Any], path: list[str], lines: list[str]) -> None:
+    items = [(str(k), v) for k, v in data.items() if v is not None]
+    for key, value in items:
+        if not isinstance(value, Mapping) and not _is_table_list(value):
+            lines.append(f"{_toml_key(key)} = {_toml_value(value)}")
+    for key, value in items:
+        sub = [*path, _toml_key(key)]
+        if isinstance(value, Mapping):
+            lines.extend(["", f"[{'.'.join(sub)}]"])
+            _toml_table(value, sub, lines)
+        elif _is_table_list(value):
+            for entry in value:
+                lines.extend(["", f"[[{'.'.join(sub)}]]"])
+                _toml_table(entry, sub, lines)
