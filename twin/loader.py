@@ -63,7 +63,7 @@ def read_mapping(path: Path) -> dict[str, Any]:
     except tomllib.TOMLDecodeError as e:
         raise ScenarioError(f"scenario: '{path}' is not valid TOML: {e}") from None
     except yaml.YAMLError as e:
-        first = str(e).splitlines()[0] if str(e) else "parse error"
+        first = getattr(e, "problem", None) or (str(e).splitlines() or ["parse error"])[0]
         mark = getattr(e, "problem_mark", None)
         where = f" (line {mark.line + 1})" if mark is not None else ""
         raise ScenarioError(f"scenario: '{path}' is not valid YAML{where}: {first}") from None

@@ -12,7 +12,7 @@ import json
 import math
 import os
 import re
-import tempfile
+import secrets
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -30,14 +30,31 @@ class OutputError(UserError):
     """A result file that cannot be written where or how the user asked; one line."""
 
 
+def check_writable(path: str | Path, option: str = "output") -> Path:
+    """``path`` as a Path once its folder exists (created if missing) and can be written.
+
+    Called before a long computation, so a bad output path fails at once, not at the end.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise OutputError(f"{option}: '{p}' is a folder; give a file name")
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OutputError(f"{option}: cannot create folder '{p.parent}': {e.strerror}") from None
+    if not os.access(p.parent, os.W_OK):
+        raise OutputError(f"{option}: cannot write in folder '{p.parent}': permission denied")
+    return p
+
+
 def check_table_path(path: str | Path, option: str = "output") -> Path:
-    """``path`` as a Path if its suffix names a table format, else an OutputError."""
+    """``path`` as a Path if its suffix names a table format and it can be written."""
     p = Path(path)
     if p.suffix.lower() not in TABLE_SUFFIXES:
         raise OutputError(
             f"{option}: '{p}' has suffix '{p.suffix}'; allowed {', '.join(TABLE_SUFFIXES)}"
         )
-    return p
+    return check_writable(p, option)
 
 
 @contextmanager
@@ -46,11 +63,11 @@ def _atomic(path: str | Path) -> Iterator[Path]:
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        tmp = target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp"
+        # os.open, not mkstemp: the file gets the usual permissions (0666 less the umask)
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     except OSError as e:
         raise OutputError(f"cannot write '{target}': {e.strerror or e}") from None
-    os.close(fd)
-    tmp = Path(tmp_name)
     try:
         yield tmp
         os.replace(tmp, target)
@@ -74,7 +91,9 @@ def write_json(obj: Any, path: str | Path, indent: int | None = 2) -> Path:
 
 def write_table(df: pd.DataFrame, path: str | Path, option: str = "output") -> Path:
     """Write ``df`` as CSV or Parquet, chosen by the suffix of ``path``, atomically."""
-    p = check_table_path(path, option)
+    p = Path(path)
+    if p.suffix.lower() not in TABLE_SUFFIXES:
+        check_table_path(p, option)
     writers: dict[str, Callable[[Path], Any]] = {
         ".csv": lambda tmp: df.to_csv(tmp, index=False),
         ".parquet": lambda tmp: df.to_parquet(tmp, index=False),

@@ -45,7 +45,7 @@ def simulate(
     parts = rec.parts_frame(line.belt, line.last_end)
     spans = rec.spans_frame()
     kpis = compute_kpis(parts, spans, line.specs, scenario.warmup, line.duration)
-    name = policy_name or getattr(policy, "name", type(policy).__name__)
+    name = str(policy_name or getattr(policy, "name", type(policy).__name__))
     kpis = {
         "scenario": scenario.name,
         "policy": name,

@@ -1,0 +1,138 @@
+"""The ``pnp-twin`` application object and its entry point, with one-line user errors.
+
+Commands live in their own modules (``run_cmd``, and others added by later parts) and
+register themselves on :data:`app`. Whatever the command, a user mistake (any
+:class:`twin.errors.UserError`, an unreadable or unwritable user-given path, a bad option)
+ends the program with ``error: <one line>`` on stderr and exit code 2, never a traceback;
+Ctrl-C ends it with exit code 130.
+"""
+
+from __future__ import annotations
+
+import errno
+import logging
+import sys
+from collections.abc import Sequence
+from typing import Annotated, Any, NoReturn
+
+import typer
+from typer.core import TyperGroup
+
+from twin import __version__
+from twin.errors import UserError
+
+USER_ERROR = 2
+INTERRUPTED = 130
+
+
+def fail(message: str, code: int = USER_ERROR) -> NoReturn:
+    """Print ``error: message`` as one line on stderr and exit with ``code``."""
+    line = " ".join(str(message).split()) or "unknown error"
+    typer.echo(f"error: {line}", err=True)
+    raise typer.Exit(code)
+
+
+def os_error_message(e: OSError) -> str:
+    """One line for an OSError on a user-given path."""
+    where = f"'{e.filename}': " if e.filename else ""
+    return f"cannot access {where}{e.strerror or e}"
+
+
+class OneLineErrors(TyperGroup):
+    """A command group that turns user mistakes into one line and a clean exit code."""
+
+    def invoke(self, ctx: typer.Context) -> Any:  # type: ignore[override]
+        try:
+            return super().invoke(ctx)
+        except UserError as e:
+            fail(str(e))
+        except OSError as e:
+            if e.errno == errno.EPIPE:  # stdout closed early (`| head`): not a user mistake
+                raise
+            fail(os_error_message(e))
+        except KeyboardInterrupt:
+            fail("interrupted", INTERRUPTED)
+
+    def main(  # type: ignore[override]
+        self,
+        args: Sequence[str] | None = None,
+        prog_name: str | None = None,
+        complete_var: str | None = None,
+        standalone_mode: bool = True,
+        **extra: Any,
+    ) -> Any:
+        """Run the group; usage errors (bad option, missing argument) also become one line."""
+        try:
+            result = super().main(
+                args=args,
+                prog_name=prog_name or "pnp-twin",
+                complete_var=complete_var,
+                standalone_mode=False,
+                **extra,
+            )
+        except typer.TyperException as e:  # bad option or argument: a usage error, code 2
+            code = _report(e.format_message(), e.exit_code)
+        except typer.Abort:
+            code = _report("interrupted", INTERRUPTED)
+        except KeyboardInterrupt:
+            code = _report("interrupted", INTERRUPTED)
+        else:
+            code = result if isinstance(result, int) else 0
+            if not standalone_mode:
+                return result
+        if standalone_mode:
+            sys.exit(code)
+        return code
+
+
+def _report(message: str, code: int) -> int:
+    line = " ".join(str(message).split()) or "unknown error"
+    typer.echo(f"error: {line}", err=True)
+    return code
+
+
+app = typer.Typer(
+    name="pnp-twin",
+    cls=OneLineErrors,
+    help="Digital twin of multi-robot conveyor pick-and-place lines.",
+    invoke_without_command=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"pnp-twin {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def root(
+    ctx: typer.Context,
+    verbose: Annotated[
+        int,
+        typer.Option("--verbose", "-v", count=True, help="Log progress to stderr (-vv: debug)."),
+    ] = 0,
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
+    ] = False,
+) -> None:
+    """Digital twin of multi-robot conveyor pick-and-place lines."""
+    if ctx.invoked_subcommand is None:  # bare `pnp-twin`: show what it can do
+        typer.echo(ctx.get_help())
+        raise typer.Exit()
+    if verbose:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+        for name in ("twin", "policies"):
+            logger = logging.getLogger(name)
+            logger.setLevel(logging.DEBUG if verbose > 1 else logging.INFO)
+            logger.handlers = [handler]
+
+
+def main() -> None:
+    """Console-script entry point of ``pnp-twin`` (and ``python -m twin``)."""
+    app()

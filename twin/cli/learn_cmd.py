@@ -1,0 +1,207 @@
+"""The ``train`` and ``evaluate`` commands of ``pnp-twin``: the learned HDQN policy.
+
+``train`` runs :func:`policies.hdqn.train.train` (one run, or several training seeds in
+parallel worker processes) with a progress bar; ``evaluate`` compares a trained policy with
+every rule and the best rule mix on held-out seeds and prints a table of paired differences.
+torch is imported only when a command runs, so the rest of the CLI works without the
+``learn`` extra.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import replace
+from enum import StrEnum
+from multiprocessing import get_context
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+from rich import box
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from twin.cli.app import app, fail
+from twin.loader import load_scenario, parse_sets
+
+if TYPE_CHECKING:
+    from policies.hdqn.train import TrainArgs
+
+
+class Mode(StrEnum):
+    """Training set-ups."""
+
+    single = "single"
+    sync = "sync"
+    async_ = "async"
+
+
+ScenarioArg = Annotated[
+    str,
+    typer.Argument(help="A scenario file or the name of a shipped one.", show_default=False),
+]
+SetOpt = Annotated[
+    list[str] | None,
+    typer.Option("--set", metavar="PATH=VALUE", help="Override a scenario field (repeatable)."),
+]
+
+
+def _need_torch() -> None:
+    try:
+        import safetensors  # noqa: F401
+        import torch  # noqa: F401
+    except ImportError:
+        fail("train and evaluate need the learn extra: pip install 'pnp-twin[learn]'")
+
+
+def _train_one(args: TrainArgs) -> str:
+    """Worker entry point: one training run; returns its folder."""
+    from policies.hdqn.train import train
+
+    return str(train(args))
+
+
+def _progress_columns() -> list[Any]:
+    return [
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("{task.fields[info]}"),
+    ]
+
+
+@app.command("train")
+def train_cmd(
+    scenario: ScenarioArg,
+    out: Annotated[Path, typer.Option("--out", help="Output folder (one sub-folder per run).")],
+    mode: Annotated[Mode, typer.Option("--mode", help="single | sync | async.")] = Mode.async_,
+    steps: Annotated[
+        int, typer.Option("--steps", min=1, help="Transitions to train for.")
+    ] = 200_000,
+    seed: Annotated[
+        int, typer.Option("--seed", min=0, help="Training seed (first of --seeds).")
+    ] = 1,
+    device: Annotated[str, typer.Option("--device", help="auto | cpu | cuda.")] = "auto",
+    network: Annotated[str, typer.Option("--network", help="compact | paper.")] = "compact",
+    rules: Annotated[
+        str, typer.Option("--rules", help="Comma-separated rules the agent chooses among.")
+    ] = "FIFO,LIFO,SIRO,SD,LD,SPT",
+    resume: Annotated[
+        bool, typer.Option("--resume", help="Continue from the last checkpoint.")
+    ] = False,
+    seeds: Annotated[
+        int, typer.Option("--seeds", min=1, help="Training seeds: seed..seed+K-1.")
+    ] = 1,
+    workers: Annotated[
+        int, typer.Option("--workers", min=1, help="Parallel runs for --seeds.")
+    ] = 1,
+    eval_every: Annotated[
+        int, typer.Option("--eval-every", min=1, help="Steps between evaluations.")
+    ] = 20_000,
+    sets: SetOpt = None,
+) -> None:
+    """Train the HDQN meta-controller; writes OUT/<scenario>__<mode>__<seed>/."""
+    _need_torch()
+    from policies.hdqn.network import PRESETS
+    from policies.hdqn.train import TrainArgs
+    from twin.envs.driver import check_rules
+
+    if network not in PRESETS:
+        fail(f"--network: '{network}' is not a preset; allowed {', '.join(PRESETS)}")
+    load_scenario(scenario, parse_sets(sets or []))  # fail early on a bad scenario
+    base = TrainArgs(
+        scenario=scenario,
+        mode=mode.value,
+        out=str(out),
+        seed=seed,
+        steps=steps,
+        device=device,
+        network=network,
+        rules=check_rules([r.strip() for r in rules.split(",") if r.strip()]),
+        resume=resume,
+        eval_every=eval_every,
+        overrides=parse_sets(sets or []),
+    )
+    runs = [replace(base, seed=s) for s in range(seed, seed + seeds)]
+    with Progress(*_progress_columns(), transient=False) as bar:
+        if len(runs) == 1:
+            from policies.hdqn.train import train
+
+            task = bar.add_task(f"train {mode.value}", total=steps, info="")
+
+            def show(p: dict[str, Any]) -> None:
+                info = (
+                    f"{p['steps_per_s']:.0f} steps/s  reward/step {p['reward']:.3f}  "
+                    f"G {p['gripping_rate']:.1f} %  eps {p['epsilon']:.2f}"
+                )
+                bar.update(task, completed=p["step"], info=info)
+
+            folders = [str(train(runs[0], show))]
+        else:
+            task = bar.add_task(f"train {mode.value} x{len(runs)}", total=len(runs), info="")
+            folders = []
+            ctx = get_context("spawn")
+            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+                for fut in as_completed([pool.submit(_train_one, r) for r in runs]):
+                    folders.append(fut.result())
+                    bar.update(task, advance=1, info=Path(folders[-1]).name)
+    for f in sorted(folders):
+        typer.echo(f)
+
+
+@app.command("evaluate")
+def evaluate_cmd(
+    scenario: ScenarioArg,
+    policy: Annotated[str, typer.Option("--policy", help="The trained policy, hdqn:DIR.")],
+    seeds: Annotated[int, typer.Option("--seeds", min=2, help="Held-out seeds 0..N-1.")] = 20,
+    first_seed: Annotated[int, typer.Option("--first-seed", min=0, help="First seed.")] = 0,
+    mix: Annotated[
+        str | None, typer.Option("--mix", help="The best rule mix (default: searched).")
+    ] = None,
+    duration: Annotated[
+        float | None, typer.Option("--duration", min=1.0, help="Feeding time per run, s.")
+    ] = None,
+    sets: SetOpt = None,
+) -> None:
+    """Compare a trained HDQN with every rule and the best rule mix, paired by seed."""
+    _need_torch()
+    from policies.hdqn.evaluate import compare
+    from policies.registry import make_policy
+
+    prefix, sep, folder = policy.partition(":")
+    if not sep or prefix.lower() != "hdqn" or not folder:
+        fail(f"--policy: '{policy}' is not a trained policy; give hdqn:DIR")
+    line = load_scenario(scenario, parse_sets(sets or []))
+    if mix is not None:
+        make_policy(mix, line.robots.count)  # a bad mix fails here, in one line
+    result = compare(line, folder, seeds=seeds, first_seed=first_seed, mix=mix, duration=duration)
+    table = Table(
+        title=f"{line.name}: gripping rate on seeds {result.seeds[0]}..{result.seeds[-1]}",
+        box=box.SIMPLE,
+    )
+    for col in ("policy", "G %", "95% CI", "HDQN - policy", "paired 95% CI", "HDQN better"):
+        table.add_column(col, justify="left" if col == "policy" else "right")
+    for row in result.table.itertuples():
+        ref = row.policy == result.reference
+        diff = "" if ref else f"{row.diff:+.2f}"
+        ci = (
+            ""
+            if ref or math.isnan(row.diff_ci_low)
+            else (f"[{row.diff_ci_low:+.2f}, {row.diff_ci_high:+.2f}]")
+        )
+        better = "" if ref else ("yes" if row.diff_ci_low > 0 else "no")
+        table.add_row(
+            row.policy,
+            f"{row.gripping_rate:.2f}",
+            f"[{row.ci_low:.2f}, {row.ci_high:.2f}]",
+            diff,
+            ci,
+            better,
+        )
+    console = Console(highlight=False)
+    if not console.is_terminal:
+        console.width = max(console.width, 120)
+    console.print(table)
