@@ -1,0 +1,50 @@
+"""Reports: one self-contained HTML page per study folder, built from its tables only.
+
+``build_report(DIR)`` reads the folder (``docs/study_format.md``), draws the figures and
+writes ``DIR/report.html`` atomically. No simulation happens here.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+from pathlib import Path
+
+from reports.html import render
+from reports.layout import build_page
+from reports.load import ReportError, Study, load_study
+
+log = logging.getLogger(__name__)
+
+__all__ = ["ReportError", "Study", "build_report", "load_study", "render_report"]
+
+
+def render_report(study_dir: Path | str) -> str:
+    """The report of the study in ``study_dir`` as one HTML string."""
+    return render(build_page(load_study(study_dir)))
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same folder."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.chmod(tmp, 0o644)  # mkstemp makes it private; a report is meant to be shared
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def build_report(study_dir: Path | str, out: Path | str | None = None) -> Path:
+    """Write the report of ``study_dir`` to ``out`` (default ``study_dir/report.html``)."""
+    study_dir = Path(study_dir)
+    target = Path(out) if out is not None else study_dir / "report.html"
+    page = render_report(study_dir)
+    if not target.parent.is_dir():
+        raise ReportError(f"--out {target}: folder {target.parent} does not exist")
+    write_atomic(target, page)
+    log.info("report written to %s (%.1f MB)", target, len(page) / 1e6)
+    return target

@@ -1,0 +1,400 @@
+"""What goes on the page for one study: the sections, in reading order, each with only the
+figures the study's tables can fill (a study with one grid parameter, or none, or one
+policy, or without records gets fewer sections, never an empty chart)."""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime
+from typing import Any
+
+import pandas as pd
+
+from reports import figures
+from reports.html import Page, Section, esc, table_html
+from reports.load import Study
+from reports.text import (
+    at_point,
+    fmt_pct,
+    fmt_pm,
+    fmt_seconds,
+    fmt_value,
+    key_findings,
+    mix_text,
+    param_label,
+    param_value,
+    point_label,
+    reference_point,
+    scenario_value,
+    sizing_text,
+)
+
+TIMELINE_SECONDS = 20.0
+MAX_POLICIES = 8  # one colour each in figures.PALETTE
+KINDS = {"sweep": "Parameter sweep", "size": "Sizing study", "mix": "Rule-mix search"}
+
+
+def heatmap_axes(varying: list[str]) -> tuple[str, str, str | None] | None:
+    """x, y and facet parameters: the paper's arm speed x part flow per belt speed when the
+    grid has them, else the first varying parameters in the study's order."""
+    if len(varying) < 2:
+        return None
+    preferred = ["robots.arm_speed", "feeder.rate", "belt.speed"]
+    order = [p for p in preferred if p in varying] + [p for p in varying if p not in preferred]
+    return order[0], order[1], order[2] if len(order) > 2 else None
+
+
+def shown_policies(study: Study, limit: int = MAX_POLICIES) -> list[str]:
+    """The policies the line charts draw: all of them, or the ``limit`` best by mean gripping
+    rate over the grid (a mix search can rank hundreds), in the study's order."""
+    policies = study.policies
+    if len(policies) <= limit:
+        return policies
+    mean = study.summary.groupby("policy")["gripping_rate_mean"].mean()
+    top = set(mean.sort_values(ascending=False).index[:limit])
+    return [p for p in policies if p in top]
+
+
+def showcase_point(study: Study) -> tuple[dict[str, Any], str]:
+    """The grid point and policy the per-robot figures describe: the recorded run's when the
+    folder has records, else the reference point and its best policy."""
+    grid = list(study.grid)
+    results = study.results
+    if study.run is not None and results is not None and "point" in results.columns:
+        rows = results[results["point"] == study.run.get("point")]
+        if len(rows) and grid:
+            return {p: rows.iloc[0][p] for p in grid}, str(study.run.get("policy"))
+    point = reference_point(study)
+    best = at_point(study.best, point) if study.best is not None else study.summary
+    policy = str(best.iloc[0]["policy"]) if len(best) else study.policies[0]
+    return point, policy
+
+
+def cards(study: Study) -> list[tuple[str, str, str]]:
+    """The headline numbers under the title."""
+    s = study.summary
+    top = s.loc[s["gripping_rate_mean"].idxmax()]
+    out = [
+        (
+            "Best gripping rate",
+            fmt_pct(top["gripping_rate_mean"]),
+            f"{top['policy']}" + (f" · {point_label(top, list(study.grid))}" if study.grid else ""),
+        )
+    ]
+    if study.sizing is not None:
+        answer = study.sizing.get("answer")
+        out.insert(
+            0,
+            (
+                "Sizing answer",
+                "not reached" if answer is None else fmt_value(answer),
+                f"{param_label(str(study.sizing.get('parameter') or 'robots.count'), False)}"
+                f" for G ≥ {fmt_pct(float(study.sizing.get('target') or math.nan))}",
+            ),
+        )
+    points = len(study.best) if study.best is not None else 1
+    out.append(("Grid points", str(points), f"{len(study.varying)} parameter(s) varied"))
+    out.append(("Policies", str(len(study.policies)), ", ".join(study.policies)[:60]))
+    runs = len(study.results) if study.results is not None else int(s.get("n", pd.Series()).sum())
+    reps = study.meta.get("replications")
+    out.append(("Runs", f"{runs:,}", f"{reps} replications each" if reps else ""))
+    wall = study.meta.get("wall_time")
+    workers = study.meta.get("workers")
+    out.append(
+        (
+            "Run time",
+            fmt_seconds(float(wall)) if wall is not None else "–",
+            f"{workers} worker(s), {study.meta.get('backend', 'local')}" if workers else "",
+        )
+    )
+    return out
+
+
+def when_text(stamp: Any) -> str:
+    """'2025-01-01T10:00:05Z' -> '2025-01-01 10:00:05 UTC'; anything else as it is."""
+    if not stamp:
+        return "–"
+    try:
+        t = datetime.fromisoformat(str(stamp))
+    except ValueError:
+        return str(stamp)
+    zone = " UTC" if t.utcoffset() is not None and not t.utcoffset() else ""
+    return t.strftime("%Y-%m-%d %H:%M:%S") + zone
+
+
+def facts(study: Study) -> str:
+    """'What was run' as a two-column table."""
+    m = study.meta
+    scenario = m.get("scenario") or {}
+    rows: list[tuple[str, str]] = [
+        ("Scenario", f"<b>{esc(study.scenario_name)}</b> — {esc(scenario.get('description', ''))}"),
+        ("Study", esc(KINDS.get(str(m.get("kind")), str(m.get("kind", "–"))))),
+    ]
+    for path, values in study.grid.items():
+        rows.append((esc(param_label(path)), esc(", ".join(fmt_value(v) for v in values))))
+    rows.append(("Policies", esc(", ".join(study.policies))))
+    line = [
+        f"{scenario_value(scenario, 'robots.count')} robots",
+        f"arm {fmt_value(scenario_value(scenario, 'robots.arm_speed'))} m/s",
+        f"belt {fmt_value(scenario_value(scenario, 'belt.speed'))} m/s",
+        f"{fmt_value(scenario_value(scenario, 'feeder.rate'))} parts/s "
+        f"({scenario_value(scenario, 'feeder.arrival')})",
+        f"termination {scenario_value(scenario, 'termination')}",
+    ]
+    if scenario:
+        rows.append(("Base line", esc(" · ".join(line))))
+    seeds = ""
+    if study.results is not None and "seed" in study.results.columns:
+        found = sorted(pd.unique(study.results["seed"]).tolist())
+        shown = ", ".join(str(x) for x in found[:6]) + (" …" if len(found) > 6 else "")
+        seeds = f"; run seeds {shown}"
+    rows.append(
+        (
+            "Replications",
+            esc(
+                f"{m.get('replications', '–')} per point and policy, common random numbers "
+                f"(master seed {m.get('master_seed', '–')}{seeds})"
+            ),
+        )
+    )
+    rows.append(
+        (
+            "Simulated time",
+            esc(
+                f"{fmt_value(m.get('duration', '–'))} s per run, of which "
+                f"{fmt_value(m.get('warmup', '–'))} s warm-up (not measured)"
+            ),
+        )
+    )
+    when = f"{when_text(m.get('started_at'))} → {when_text(m.get('finished_at'))}"
+    wall = m.get("wall_time")
+    if wall is not None:
+        when += f" ({fmt_seconds(float(wall))}, {m.get('workers', '?')} worker(s), "
+        when += f"{m.get('backend', 'local')} backend)"
+    rows.append(("Run", esc(when)))
+    if m.get("command"):
+        rows.append(("Command", f"<code>{esc(m['command'])}</code>"))
+    versions = m.get("versions") or {}
+    if versions:
+        rows.append(("Versions", esc(" · ".join(f"{k} {v}" for k, v in versions.items()))))
+    body = "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in rows)
+    return f'<table class="facts"><tbody>{body}</tbody></table>'
+
+
+def kpi_table(study: Study) -> str:
+    """Mean KPIs with 95 % CI per grid point and policy; the best policy's row highlighted."""
+    s = study.summary
+    grid = list(study.grid)
+    order = {p: i for i, p in enumerate(study.policies)}
+    s = s.assign(_o=s["policy"].map(order)).sort_values([*grid, "_o"])
+    best = study.best
+    winners = {
+        tuple(r[p] for p in grid): r["policy"]
+        for _, r in (best if best is not None else s).iterrows()
+    }
+
+    def cell(row: pd.Series, kpi: str, scale: float, digits: int, unit: str = "") -> str:
+        mean = row.get(f"{kpi}_mean", math.nan) * scale
+        if not math.isfinite(mean):
+            return "–"
+        pm = fmt_pm(
+            row.get(f"{kpi}_ci_low", math.nan) * scale,
+            row.get(f"{kpi}_ci_high", math.nan) * scale,
+            digits,
+        )
+        return f'{mean:.{digits}f}{unit}<span class="pm">{esc(pm)}</span>'
+
+    header = [esc(param_label(p)) for p in grid] + [
+        "Policy",
+        "Gripping rate",
+        "Throughput (parts/s)",
+        "Efficiency",
+        "Utilisation",
+        "n",
+    ]
+    rows, classes = [], []
+    for _, r in s.iterrows():
+        is_best = winners.get(tuple(r[p] for p in grid)) == r["policy"]
+        rows.append(
+            [esc(fmt_value(r[p])) for p in grid]
+            + [
+                esc(r["policy"]) + (" ★" if is_best and len(study.policies) > 1 else ""),
+                cell(r, "gripping_rate", 1, 1, " %"),
+                cell(r, "throughput", 1, 2),
+                cell(r, "efficiency", 100, 1, " %"),
+                cell(r, "utilisation", 100, 1, " %"),
+                esc(int(r["n"])) if "n" in r and pd.notna(r["n"]) else "–",
+            ]
+        )
+        classes.append("best" if is_best and len(study.policies) > 1 else "")
+    return table_html(header, rows, left=0, classes=classes, scroll=len(rows) > 14)
+
+
+def answer_section(study: Study) -> Section | None:
+    if study.sizing is None:
+        return None
+    sentences = "".join(f"<p>{esc(t)}</p>" for t in sizing_text(study.sizing))
+    items: list[Any] = [f'<div class="answer">{sentences}</div>']
+    if study.sizing.get("rows"):
+        items.append(figures.sizing_figure(study.sizing))
+    return Section("answer", "The sizing answer", "", items)
+
+
+def mix_section(study: Study) -> Section | None:
+    if study.mix is None:
+        return None
+    items: list[Any] = [f'<div class="answer"><p>{esc(mix_text(study.mix))}</p></div>']
+    ranked = study.mix.get("ranked") or []
+    if ranked:
+        items.append(figures.mix_figure(study.mix))
+        rows = [
+            [
+                str(i),
+                f"<code>{esc(r['mix'])}</code>",
+                esc(fmt_pct(float(r["gripping_rate_mean"]), 2)),
+                esc(fmt_pm(r.get("ci_low", math.nan), r.get("ci_high", math.nan), 2)),
+            ]
+            for i, r in enumerate(ranked[:10], start=1)
+        ]
+        items.append(
+            table_html(["Rank", "Rules, robot 1 first", "Gripping rate", "95 % CI"], rows, 2)
+        )
+    intro = "Per-robot dispatching rules, searched as Huang et al. did: the static baseline a "
+    intro += "learned policy has to beat."
+    return Section("mix", "Rule-mix ranking", esc(intro), items)
+
+
+def sweep_section(study: Study) -> Section | None:
+    if not study.varying:
+        return None
+    ref = reference_point(study)
+    shown = shown_policies(study)
+    colors = figures.policy_colors(shown)
+    items: list[Any] = []
+    for path in study.varying:
+        fixed = {k: v for k, v in ref.items() if k != path}
+        items.append(figures.sweep_figure(study.summary, path, fixed, shown, colors))
+    intro = "Mean gripping rate of each policy as one parameter varies, the others held at the "
+    intro += "base scenario's values (or the middle of their range); shaded bands are 95 % CIs."
+    if len(shown) < len(study.policies):
+        intro += f" The {len(shown)} best of {len(study.policies)} policies are drawn."
+    return Section("sweep", "Gripping rate against each parameter", esc(intro), items)
+
+
+def heatmap_section(study: Study) -> Section | None:
+    axes = heatmap_axes(study.varying)
+    if axes is None or study.best is None:
+        return None
+    x, y, facet = axes
+    ref = reference_point(study)
+    fixed = {k: v for k, v in ref.items() if k not in (x, y, facet)}
+    fig = figures.heatmap_figure(study.best, x, y, facet, fixed)
+    intro = "Mean gripping rate of the best policy in each cell (the winning policy is named)"
+    intro += f", one panel per {param_label(facet, False).lower()}." if facet else "."
+    return Section("heatmaps", "Heatmaps", esc(intro), [fig])
+
+
+def policy_section(study: Study) -> Section | None:
+    paired = study.paired
+    if len(study.policies) < 2 or paired is None or paired.empty:
+        return None
+    shown = shown_policies(study)
+    colors = figures.policy_colors(shown)
+    fig = figures.policy_figure(paired, list(study.grid), shown, colors)
+    intro = "Each policy's gripping rate minus the best policy's at the same grid point, paired by "
+    intro += "replication. An error bar that crosses zero means the data cannot tell the two apart."
+    if len(shown) < len(study.policies):
+        intro += f" The {len(shown)} best of {len(study.policies)} policies are drawn."
+    return Section("policies", "Policy comparison", esc(intro), [fig])
+
+
+def robots_section(study: Study) -> Section | None:
+    results = study.results
+    if results is None or figures.robot_count(results) == 0:
+        return None
+    point, policy = showcase_point(study)
+    runs = at_point(results, point)
+    if runs[runs["policy"] == policy].empty:
+        return None
+    fig = figures.robots_figure(results, point, policy)
+    intro = "Where each robot's time goes, and how many parts leave its workspace unpicked "
+    intro += "(missed by the line, or left to robots downstream)."
+    return Section("robots", "Robots", esc(intro), [fig])
+
+
+def records_section(study: Study) -> Section | None:
+    if study.parts is None or study.spans is None or study.run is None:
+        return None
+    scenario = study.run.get("scenario") or study.meta.get("scenario") or {}
+    duration = float(scenario.get("duration") or study.meta.get("duration") or 60.0)
+    warmup = float(scenario.get("warmup") or study.meta.get("warmup") or 0.0)
+    t0 = warmup if duration - warmup >= 20 else max(0.0, duration - TIMELINE_SECONDS)
+    t1 = min(t0 + TIMELINE_SECONDS, duration)
+    n = int((scenario.get("robots") or {}).get("count") or 0) or int(
+        max(study.spans["robot"].max(), study.parts["robot"].max()) + 1
+    )
+    items: list[Any] = []
+    if t1 > t0:
+        items.append(figures.timeline_figure(study.parts, study.spans, t0, t1, n))
+    if len(study.parts):
+        items.append(figures.belt_figure(study.parts, scenario, t0))
+    if not items:
+        return None
+    run = study.run
+    where = ""
+    results = study.results
+    if results is not None and "point" in results.columns and study.grid:
+        rows = results[results["point"] == run.get("point")]
+        if len(rows):
+            values = [param_value(p, rows.iloc[0][p], lower=True) for p in study.grid]
+            where = " at " + ", ".join(values)
+    intro = (
+        f"One recorded run: policy {run.get('policy')}{where}, replication "
+        f"{run.get('replication', 0)}, seed {run.get('seed', '–')}."
+    )
+    return Section("run", "One run up close", esc(intro), items)
+
+
+def build_page(study: Study) -> Page:
+    """The report of ``study`` as a Page (sections in reading order)."""
+    findings = "".join(f"<li>{esc(t)}</li>" for t in key_findings(study))
+    notes = "".join(f'<p class="note">{esc(n)}</p>' for n in study.notes)
+    summary = Section(
+        "findings", "Key findings", "", [f'<ul class="findings">{findings}</ul>{notes}']
+    )
+    sections = [
+        answer_section(study),
+        mix_section(study),
+        summary,
+        Section("setup", "What was run", "", [facts(study)]),
+        sweep_section(study),
+        heatmap_section(study),
+        policy_section(study),
+        robots_section(study),
+        records_section(study),
+        Section(
+            "kpis",
+            "KPI summary",
+            esc(
+                "Mean over replications with the 95 % confidence half-width; ★ marks the best "
+                "policy at each grid point. Efficiency: throughput over min(part flow, robot "
+                "capacity); utilisation: share of time moving, gripping or placing."
+            ),
+            [kpi_table(study)],
+        ),
+    ]
+    kind = str(study.meta.get("kind", "study"))
+    description = (study.meta.get("scenario") or {}).get("description") or ""
+    finished = str(study.meta.get("finished_at") or "")[:10]
+    versions = study.meta.get("versions") or {}
+    return Page(
+        title=f"{study.scenario_name}: {KINDS.get(kind, kind).lower()}",
+        eyebrow=f"pnp-twin report<span class='badge'>{esc(kind)}</span>",
+        lead=esc(description) + (f" · {esc(finished)}" if finished else ""),
+        cards=cards(study),
+        sections=[s for s in sections if s is not None],
+        footer=esc(
+            f"Generated by pnp-twin {versions.get('pnp_twin', '')} from {study.path.name}/ · "
+            "self-contained: opens offline. Gripping rate G = parts picked / parts presented."
+        ),
+    )

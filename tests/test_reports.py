@@ -1,0 +1,215 @@
+"""Reports from study folders: figures from tables, sentences, and the self-contained page."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from plotly.offline import get_plotlyjs
+
+from reports import ReportError, build_report, figures, layout, load_study, render_report
+from reports.text import fmt_pct, fmt_pm, key_findings, reference_point, sizing_text
+from tests.study_fixture import make_study
+
+
+@pytest.fixture(scope="session")
+def sweep3(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One parameter with three values, two policies, two replications, records."""
+    folder = tmp_path_factory.mktemp("reports") / "sweep3"
+    return make_study(folder, grid={"robots.arm_speed": [2, 3, 4]}, policies=("SD", "FIFO"))
+
+
+@pytest.fixture(scope="session")
+def grid3d(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The paper's layout in small: arm speed x part flow x belt speed, two policies."""
+    folder = tmp_path_factory.mktemp("reports") / "grid3d"
+    grid = {"robots.arm_speed": [2, 4], "feeder.rate": [10, 15], "belt.speed": [0.6, 1.0]}
+    return make_study(folder, grid=grid, policies=("SD", "FIFO"))
+
+
+@pytest.fixture(scope="session")
+def sizing(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A sizing study of 2 to 4 robots, a target the simulation reaches at some count."""
+    folder = tmp_path_factory.mktemp("reports") / "size"
+    return make_study(
+        folder,
+        grid={"robots.count": [2, 3, 4]},
+        policies=("SD",),
+        replications=3,
+        kind="size",
+        records=False,
+        target=45.0,
+    )
+
+
+def test_sweep_figure_has_one_band_per_policy_and_every_value(sweep3: Path) -> None:
+    study = load_study(sweep3)
+    fig = figures.sweep_figure(study.summary, "robots.arm_speed", {}, study.policies)
+    bands = [t for t in fig.data if t.fill == "toself"]
+    lines = [t for t in fig.data if t.mode == "lines+markers"]
+    assert sorted(t.legendgroup for t in bands) == ["FIFO", "SD"]
+    assert [t.name for t in lines] == ["SD", "FIFO"]
+    for line in lines:
+        assert list(line.x) == [2, 3, 4]
+        means = study.summary[study.summary["policy"] == line.name].sort_values("robots.arm_speed")[
+            "gripping_rate_mean"
+        ]
+        assert list(line.y) == pytest.approx(means.tolist())
+    for band in bands:  # upper edge out, lower edge back: six points, around the mean line
+        assert len(band.x) == 6
+        line = next(t for t in lines if t.name == band.legendgroup)
+        assert all(
+            hi >= m >= lo for hi, m, lo in zip(band.y[:3], line.y, band.y[:2:-1], strict=True)
+        )
+
+
+def test_heatmap_follows_the_paper_layout(grid3d: Path) -> None:
+    study = load_study(grid3d)
+    assert layout.heatmap_axes(study.varying) == ("robots.arm_speed", "feeder.rate", "belt.speed")
+    fig = figures.heatmap_figure(study.best, "robots.arm_speed", "feeder.rate", "belt.speed", {})
+    maps = [t for t in fig.data if t.type == "heatmap"]
+    assert len(maps) == 2  # one panel per belt speed
+    assert [a.text for a in fig.layout.annotations] == ["Belt speed 0.6 m/s", "Belt speed 1 m/s"]
+    first = study.best[study.best["belt.speed"] == 0.6].set_index(
+        ["feeder.rate", "robots.arm_speed"]
+    )
+    z = maps[0].z
+    assert z[0][1] == pytest.approx(first.loc[(10, 4), "gripping_rate_mean"])
+    assert maps[0].text[1][0] == first.loc[(15, 2), "policy"]  # cells name the winner
+    assert sum(bool(m.showscale) for m in maps) == 1
+
+
+def test_policy_figure_gaps_are_paired_differences(grid3d: Path) -> None:
+    study = load_study(grid3d)
+    fig = figures.policy_figure(study.paired, list(study.grid), study.policies)
+    assert [t.name for t in fig.data] == ["SD", "FIFO"]
+    fifo = next(t for t in fig.data if t.name == "FIFO")
+    assert len(fifo.x) == 8
+    paired = study.paired[study.paired["policy"] == "FIFO"].sort_values(list(study.grid))
+    assert list(fifo.y) == pytest.approx(paired["diff_mean"].tolist())
+    for trace in fig.data:  # the best policy of a point sits at zero, the others below
+        for y, (ref,) in zip(trace.y, trace.customdata, strict=True):
+            assert y == 0 if ref == trace.name else y <= 0
+
+
+def test_timeline_and_belt_come_from_the_records(sweep3: Path) -> None:
+    study = load_study(sweep3)
+    assert study.parts is not None and study.spans is not None and study.run is not None
+    fig = figures.timeline_figure(study.parts, study.spans, 10.0, 30.0, 4)
+    busy = next(t for t in fig.data if t.name.startswith("Busy"))
+    picked = study.parts[study.parts["outcome"] == "picked"]
+    in_window = picked[(picked["placed_at"] > 10) & (picked["decided_at"] < 30)]
+    assert len(busy.x) == len(in_window)
+    assert (
+        min(busy.base) >= 10.0
+        and max(b + x for b, x in zip(busy.base, busy.x, strict=True)) <= 30.0
+    )
+    scenario = study.run["scenario"]
+    belt = figures.belt_figure(study.parts, scenario, 12.0)
+    on = figures.belt_positions(study.parts, scenario["belt"]["speed"], 12.0)
+    assert sum(len(t.x) for t in belt.data) == sum(len(d) for d in on.values()) > 0
+    for d in on.values():
+        assert ((d["x"] >= 0) & (d["x"] <= 2.4)).all()
+    assert len(belt.frames) == 51  # 5 s at 0.1 s
+    rects = [s for s in belt.layout.shapes if s.type == "rect"]
+    assert len(rects) == 1 + 4 + 4  # belt, workspaces, bins
+
+
+def test_robots_figure_stacks_time_shares(sweep3: Path) -> None:
+    study = load_study(sweep3)
+    point, policy = layout.showcase_point(study)
+    assert policy == study.run["policy"] and point == {"robots.arm_speed": 2}
+    fig = figures.robots_figure(study.results, point, policy)
+    stacked = [t for t in fig.data if t.xaxis == "x"]
+    totals = [sum(t.y[i] for t in stacked) for i in range(4)]
+    assert all(90 <= s <= 100.001 for s in totals)
+    missed = next(t for t in fig.data if t.name == "Passed unpicked")
+    runs = study.results[
+        (study.results["robots.arm_speed"] == 2) & (study.results["policy"] == policy)
+    ]
+    assert missed.y[3] == pytest.approx(runs["r4_missed"].mean())
+
+
+def test_sizing_sentence_names_the_answer(sizing: Path) -> None:
+    data = json.loads((sizing / "sizing.json").read_text())
+    assert data["answer"] is not None
+    first = sizing_text(data)[0]
+    assert f"needs {data['answer']} robots" in first
+    assert "45.0 %" in first and "95 % confidence" in first
+    assert any("N_min" in s for s in sizing_text(data))
+    none = dict(data, answer=None)
+    assert sizing_text(none)[0].startswith("None of the values tried (2 to 4) reaches")
+    fig = figures.sizing_figure(data)
+    assert list(fig.data[0].x) == [2, 3, 4]
+
+
+def test_report_html_is_self_contained(grid3d: Path) -> None:
+    html = render_report(grid3d)
+    js = get_plotlyjs()
+    assert html.count(js[:2000]) == 1  # plotly.js inlined exactly once
+    assert html.count("Plotly.newPlot(") == 8
+    assert 'content="8"' in html
+    assert "<script src" not in html and "cdn." not in html.replace(js, "")
+    assert "@import" not in html and "fonts.googleapis" not in html
+    for heading in ("What was run", "Heatmaps", "Policy comparison", "Robots", "KPI summary"):
+        assert f">{heading}</h2>" in html
+    summary = pd.read_csv(grid3d / "summary.csv")
+    top = summary["gripping_rate_mean"].max()
+    assert fmt_pct(top) in html  # G in % with one decimal
+
+
+def test_report_without_records_or_sizing_still_builds(grid3d: Path, tmp_path: Path) -> None:
+    bare = tmp_path / "bare"
+    shutil.copytree(grid3d, bare, ignore=shutil.ignore_patterns("records", "report.html"))
+    for name in ("paired.csv", "best.csv", "results.parquet", "results.csv"):
+        (bare / name).unlink()
+    out = build_report(bare)
+    assert out == bare / "report.html"
+    html = out.read_text(encoding="utf-8")
+    assert "One run up close" not in html and "Policy comparison" not in html
+    assert "Heatmaps" in html  # best.csv is rebuilt from summary.csv
+    assert "No run records" in html
+    assert not list(bare.glob(".report.html.*"))  # no temp file left behind
+
+
+def test_single_point_single_policy_study(tmp_path: Path) -> None:
+    folder = make_study(tmp_path / "one", grid={}, policies=("SD",), replications=2)
+    study = load_study(folder)
+    page = layout.build_page(study)
+    titles = [s.title for s in page.sections]
+    assert "Gripping rate against each parameter" not in titles
+    assert "Heatmaps" not in titles and "Policy comparison" not in titles
+    assert page.figures == 3  # robots, timeline, belt: never an empty chart
+    assert key_findings(study)[0].startswith("Highest mean gripping rate")
+    assert reference_point(study) == {}
+
+
+def test_mix_report_ranks_the_mixes(tmp_path: Path) -> None:
+    mixes = ("SPT,SPT,SPT,FIFO", "SD", "FIFO")
+    folder = make_study(tmp_path / "mix", grid={}, policies=mixes, kind="mix", records=False)
+    html = render_report(folder)
+    mix = json.loads((folder / "mix.json").read_text())
+    assert "Rule-mix ranking" in html and "Best of 3 rule mixes" in html
+    assert html.index(mix["ranked"][0]["mix"]) < html.index(mix["ranked"][-1]["mix"] + "</code>")
+
+
+def test_formats_for_humans() -> None:
+    assert fmt_pct(72.345) == "72.3 %"
+    assert fmt_pct(float("nan")) == "–"
+    assert fmt_pm(70.0, 73.0) == "± 1.5"
+    assert fmt_pm(float("nan"), 1.0) == ""
+
+
+def test_not_a_study_folder_is_one_line(tmp_path: Path) -> None:
+    with pytest.raises(ReportError) as e:
+        load_study(tmp_path)
+    assert "meta.json" in str(e.value) and "\n" not in str(e.value)
+    with pytest.raises(ReportError):
+        load_study(tmp_path / "missing")
+    (tmp_path / "meta.json").write_text("{not json")
+    with pytest.raises(ReportError) as e:
+        load_study(tmp_path)
+    assert "cannot read JSON" in str(e.value)
