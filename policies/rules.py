@@ -33,13 +33,13 @@ def siro(d: Decision, rng: np.random.Generator) -> int:
 def sd(d: Decision, rng: np.random.Generator) -> int:
     """Shortest distance: the part nearest the upper edge (the bin side)."""
     ys = d.ys
-    return max(range(len(ys)), key=ys.__getitem__)
+    return ys.index(max(ys))
 
 
 def ld(d: Decision, rng: np.random.Generator) -> int:
     """Longest distance: the part nearest the lower edge."""
     ys = d.ys
-    return min(range(len(ys)), key=ys.__getitem__)
+    return ys.index(min(ys))
 
 
 def cycle_times(d: Decision) -> list[float]:
@@ -57,7 +57,7 @@ def cycle_times(d: Decision) -> list[float]:
 def spt(d: Decision, rng: np.random.Generator) -> int:
     """Shortest processing time: the smallest full cycle time (Huang et al. 2015)."""
     c = cycle_times(d)
-    return min(range(len(c)), key=c.__getitem__)
+    return c.index(min(c))
 
 
 RULES: dict[str, Rule] = {"FIFO": fifo, "LIFO": lifo, "SIRO": siro, "SD": sd, "LD": ld, "SPT": spt}

@@ -54,13 +54,15 @@ class Belt:
         """Time until the next unclaimed part upstream of ``x`` reaches it (inf if none)."""
         v = self.speed
         fed, holder = self.fed, self.holder
-        i = bisect_right(fed, now - x / v)
+        lag = x / v
+        i = bisect_right(fed, now - lag)
         n = len(fed)
-        while i < n and holder[i] != FREE:
+        # a part at x (to rounding) has already entered: waiting for it would take no time
+        while i < n and (holder[i] != FREE or fed[i] + lag <= now):
             i += 1
         if i >= n:
             return math.inf
-        return fed[i] + x / v - now
+        return fed[i] + lag - now
 
     def image(
         self,

@@ -112,10 +112,11 @@ class Robot:
         bx, by = bin_.position
         timeout = env.timeout
         holder, left_at = belt.holder, belt.left_at
+        decides_at_once = gw.scheme == "t_continue" and not gw.hold
         while True:
             if env.now >= self.next_failure_at:
                 yield from self._breaking_down()
-            hold = gw.free(self)
+            hold = None if decides_at_once else gw.free(self)
             if hold is not None:
                 t0 = env.now
                 yield hold
@@ -163,6 +164,8 @@ class Robot:
         assert self.gateway is not None
         self.gateway.noop(self)
         wait = min(self.belt.next_entry(env.now, self.a), self.belt.tick)
+        if env.now + wait <= env.now:  # too small to move the clock: a NooP must let time pass
+            wait = self.belt.tick
         t0 = env.now
         yield env.timeout(wait)
         self.recorder.span(self.index, "noop", t0, env.now)

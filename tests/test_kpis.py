@@ -1,0 +1,156 @@
+"""compute_kpis on hand-built record tables, with every figure worked out by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from policies import make_policy
+from twin import simulate
+from twin.decision import RobotSpec
+from twin.kpis import compute_kpis, flat_kpis
+from twin.records import PART_COLUMNS, SPAN_COLUMNS
+
+NAN = math.nan
+WARMUP, DURATION = 10.0, 20.0  # the window is [10, 20): 10 s
+
+
+def spec(i: int, a: float, b: float) -> RobotSpec:
+    # bin 0.2 m beyond the upper edge, arm 2 m/s, grip and release 0.1 s: the shortest cycle
+    # is 0.1 + 0.1 + 2 * 0.2 / 2 = 0.4 s, a capacity of 2.5 picks/s
+    return RobotSpec(i, 2, (a, b), ((a + b) / 2, 0.6), 2.0, 0.0, 0.1, 0.1, 0.8, 0.4)
+
+
+SPECS = [spec(0, 0.3, 0.8), spec(1, 0.8, 1.3)]
+
+
+def parts_table() -> pd.DataFrame:
+    rows = [
+        # part fed   y    kind outcome  robot rule   decided picked placed blocked left
+        (0, 5.0, 0.2, "", "picked", 0, "SD", 5.5, 5.8, 6.5, 0.0, 5.8),  # before the window
+        (1, 10.0, 0.3, "", "picked", 0, "SD", 11.0, 11.5, 12.0, 0.2, 11.5),
+        (2, 11.0, 0.1, "", "picked", 1, "FIFO", 12.0, 12.4, 13.0, 0.0, 12.4),
+        (3, 12.0, 0.2, "", "missed", None, None, NAN, NAN, NAN, 0.0, 13.625),
+        (4, 13.0, 0.25, "", "picked", 0, "SD", 19.0, 19.5, 21.0, 0.0, 19.5),  # ends late
+        (5, 20.0, 0.2, "", "missed", None, None, NAN, NAN, NAN, 0.0, 21.625),  # after it
+    ]
+    df = pd.DataFrame(rows, columns=PART_COLUMNS)
+    df["robot"] = df["robot"].astype("Int64")
+    return df
+
+
+def spans_table() -> pd.DataFrame:
+    rows = [
+        (0, "wait", 0.0, 10.5),  # 0.5 s inside the window
+        (1, "noop", 9.0, 9.5),  # before the window: neither time nor a NooP decision
+        (1, "noop", 10.0, 12.0),
+        (0, "blocked", 11.8, 12.0),  # a box change inside part 1's cycle
+        (1, "interrupted", 13.0, 13.5),  # an approach cut short: busy time, no pick
+        (1, "down", 14.0, 16.0),
+    ]
+    return pd.DataFrame(rows, columns=SPAN_COLUMNS)
+
+
+@pytest.fixture()
+def kpis() -> dict:
+    return compute_kpis(parts_table(), spans_table(), SPECS, WARMUP, DURATION)
+
+
+def test_gripping_rate_counts_parts_fed_in_the_window(kpis) -> None:
+    # parts 1-4 were fed in [10, 20); 1, 2 and 4 were picked
+    assert kpis["parts_presented"] == 4
+    assert kpis["parts_picked"] == 3
+    assert kpis["parts_missed"] == 1
+    assert kpis["gripping_rate"] == pytest.approx(75.0)
+
+
+def test_throughput_flow_and_efficiency(kpis) -> None:
+    assert kpis["throughput"] == pytest.approx(0.3)  # 3 picks in 10 s
+    assert kpis["part_flow"] == pytest.approx(0.4)  # 4 parts presented in 10 s
+    # maximum = min(flow 0.4, capacity 2 x 2.5)
+    assert kpis["max_throughput"] == pytest.approx(0.4)
+    assert kpis["efficiency"] == pytest.approx(0.75)
+    assert [r["capacity"] for r in kpis["robots"]] == pytest.approx([2.5, 2.5])
+    assert [r["picks"] for r in kpis["robots"]] == [2, 1]
+    assert [r["throughput"] for r in kpis["robots"]] == pytest.approx([0.2, 0.1])
+
+
+def test_utilisation_and_state_shares(kpis) -> None:
+    r1, r2 = kpis["robots"]
+    # robot 1 busy: 11-12 (less 0.2 s blocked) and 19-20 (clipped at the window's end)
+    assert r1["utilisation"] == pytest.approx((1.0 - 0.2 + 1.0) / 10)
+    assert r1["blocked"] == pytest.approx(0.02)
+    assert r1["wait"] == pytest.approx(0.05)
+    assert (r1["noop"], r1["down"], r1["availability"]) == (0.0, 0.0, 1.0)
+    # robot 2 busy: 12-13 and the interrupted approach 13-13.5; NooP 10-12; down 14-16
+    assert r2["utilisation"] == pytest.approx(1.5 / 10)
+    assert r2["noop"] == pytest.approx(0.2)
+    assert r2["down"] == pytest.approx(0.2)
+    assert r2["availability"] == pytest.approx(0.8)
+    assert r2["wait"] == 0.0 and r2["blocked"] == 0.0
+    assert kpis["utilisation"] == pytest.approx((1.8 + 1.5) / 20)
+
+
+def test_missed_per_workspace(kpis) -> None:
+    # parts that left workspace i unpicked: part 3 passed both; part 2 passed robot 1's
+    assert [r["missed"] for r in kpis["robots"]] == [2, 1]
+    assert [r["workspace"] for r in kpis["robots"]] == [[0.3, 0.8], [0.8, 1.3]]
+
+
+def test_cycle_times(kpis) -> None:
+    # picked parts of the window: cycles 1 s, 1 s and 2 s (decided to placed)
+    assert kpis["cycle_time_mean"] == pytest.approx(4 / 3)
+    assert kpis["cycle_time_p50"] == pytest.approx(1.0)
+    assert kpis["cycle_time_p95"] == pytest.approx(1.9)  # linear interpolation
+    assert kpis["cycle_time_max"] == pytest.approx(2.0)
+    assert [r["cycle_time_mean"] for r in kpis["robots"]] == pytest.approx([1.5, 1.0])
+
+
+def test_decisions_per_rule(kpis) -> None:
+    # picks of the window by rule, and NooPs that started in the window
+    assert kpis["decisions"] == {"FIFO": 1, "NooP": 1, "SD": 2}
+
+
+def test_flat_row(kpis) -> None:
+    row = flat_kpis(kpis)
+    assert row["gripping_rate"] == pytest.approx(75.0)
+    assert row["r1_picks"] == 2 and row["r2_picks"] == 1
+    assert row["r2_availability"] == pytest.approx(0.8)
+    assert row["r1_missed"] == 2
+    assert (row["rule_SD"], row["rule_FIFO"], row["rule_NooP"]) == (2, 1, 1)
+    assert not any(isinstance(v, dict | list) for v in row.values())
+    assert "robots" not in row and "decisions" not in row
+
+
+def test_an_empty_window_gives_nan_rates_not_errors() -> None:
+    parts = parts_table().iloc[[0]]  # only a part fed before the window
+    k = compute_kpis(parts, spans_table().iloc[:0], SPECS, WARMUP, DURATION)
+    assert k["parts_presented"] == 0
+    assert math.isnan(k["gripping_rate"]) and math.isnan(k["cycle_time_mean"])
+    assert k["throughput"] == 0.0
+    assert k["decisions"] == {"NooP": 0}
+
+
+def test_kpis_of_a_real_run_are_consistent(make_scenario) -> None:
+    r = simulate(make_scenario(), make_policy("SPT"))
+    k = r.kpis
+    span = r.scenario.duration - r.scenario.warmup
+    assert sum(x["picks"] for x in k["robots"]) == k["parts_picked"]
+    assert k["throughput"] == pytest.approx(k["parts_picked"] / span)
+    assert k["decisions"]["SPT"] == k["parts_picked"]
+    for x in k["robots"]:
+        shares = [x[s] for s in ("utilisation", "noop", "wait", "blocked", "down")]
+        assert all(s >= 0.0 for s in shares)
+        assert sum(shares) <= 1.0 + 1e-9  # a robot is in one state at a time
+    # the decisions table counts every choice and NooP of the whole run
+    d = r.decisions
+    spt = int(d.loc[d["rule"] == "SPT", "count"].sum())
+    assert spt == int((r.parts["outcome"] == "picked").sum())
+    # every NooP decision has its span, but for the one each robot is in when the run stops
+    noop_decisions = int(d.loc[d["rule"] == "NooP", "count"].sum())
+    noop_spans = int((r.spans["state"] == "noop").sum())
+    assert noop_spans <= noop_decisions <= noop_spans + r.scenario.robots.count
+    assert np.isfinite(k["cycle_time_mean"])
