@@ -98,6 +98,8 @@ def summarise(results: pd.DataFrame, grid: Sequence[str], confidence: float = 0.
         row = {"point": point, **{c: g[c].iloc[0] for c in grid}, "policy": policy, "n": len(g)}
         for kpi in KPIS:
             mean, low, high = t_interval(g[kpi].to_numpy(), confidence)
+            if kpi == "gripping_rate":  # a percentage: the interval cannot leave [0, 100]
+                low, high = max(low, 0.0), min(high, 100.0)
             row.update({f"{kpi}_mean": mean, f"{kpi}_ci_low": low, f"{kpi}_ci_high": high})
         rows.append(row)
     return pd.DataFrame(rows)
