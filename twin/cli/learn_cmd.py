@@ -51,9 +51,11 @@ SetOpt = Annotated[
 def _need_torch() -> None:
     try:
         import safetensors  # noqa: F401
-        import torch  # noqa: F401
+        import torch
     except ImportError:
         fail("train and evaluate need the learn extra: pip install 'pnp-twin[learn]'")
+    # The networks are tiny: one intra-op thread is much faster than several on a busy CPU.
+    torch.set_num_threads(1)
 
 
 def _train_one(args: TrainArgs) -> str:
@@ -101,6 +103,9 @@ def train_cmd(
     eval_every: Annotated[
         int, typer.Option("--eval-every", min=1, help="Steps between evaluations.")
     ] = 20_000,
+    eval_seeds: Annotated[
+        int, typer.Option("--eval-seeds", min=2, help="Validation seeds per evaluation.")
+    ] = 4,
     sets: SetOpt = None,
 ) -> None:
     """Train the HDQN meta-controller; writes OUT/<scenario>__<mode>__<seed>/."""
@@ -123,6 +128,7 @@ def train_cmd(
         rules=check_rules([r.strip() for r in rules.split(",") if r.strip()]),
         resume=resume,
         eval_every=eval_every,
+        eval_seeds=eval_seeds,
         overrides=parse_sets(sets or []),
     )
     runs = [replace(base, seed=s) for s in range(seed, seed + seeds)]

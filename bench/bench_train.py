@@ -1,0 +1,83 @@
+"""Training speed of the HDQN: steps per second per mode, and time to beat the best rule.
+
+Usage::
+
+    python bench/bench_train.py [--steps 4000] [--modes single,sync,async] [--device cpu]
+    python bench/bench_train.py --modes '' --run runs/paper_baseline__async__1
+
+Part 1 trains each mode for ``--steps`` transitions (learning from step 500, one gradient
+step per 4 transitions, as the default run) and prints transitions per wall-clock second
+and per CPU second of this process (the steadier figure on a shared machine). Part 2 reads
+the ``eval.csv`` of a finished async run (``--run``) and prints the training wall time
+until its greedy policy first beat the best single rule on the validation seeds by a margin
+outside the paired 95 % confidence interval.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+
+from policies.hdqn.train import TrainArgs, train
+
+
+def train_rate(mode: str, steps: int, device: str, scenario: str) -> tuple[float, float]:
+    """(transitions per wall second, per CPU second) of a short training run of ``mode``."""
+    with tempfile.TemporaryDirectory() as out:
+        args = TrainArgs(
+            scenario=scenario,
+            mode=mode,
+            out=out,
+            steps=steps,
+            device=device,
+            learning_starts=500,
+            eval_every=10**9,  # no evaluation inside the timing (one at the end)
+            eval_seeds=2,
+            eval_duration=10.0,
+        )
+        t0, c0 = time.perf_counter(), time.process_time()
+        train(args)
+        return steps / (time.perf_counter() - t0), steps / (time.process_time() - c0)
+
+
+def first_beat(run: Path) -> dict[str, str] | None:
+    """The first evaluation row of a run that beat the best single rule, if any."""
+    with (run / "eval.csv").open() as f:
+        for row in csv.DictReader(f):
+            if row["beats_best_rule"] == "1":
+                return row
+    return None
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", default="paper_baseline")
+    parser.add_argument("--steps", type=int, default=4000)
+    parser.add_argument("--modes", default="single,sync,async")
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--run", type=Path, default=None, help="a finished async run folder")
+    a = parser.parse_args()
+    torch.set_num_threads(1)
+    for mode in [m for m in a.modes.split(",") if m]:
+        wall, cpu = train_rate(mode, a.steps, a.device, a.scenario)
+        print(f"{mode:>6}: {wall:8.0f} steps/s wall, {cpu:8.0f} steps/s CPU ({a.device})")
+    if a.run is not None:
+        row = first_beat(a.run)
+        if row is None:
+            print(f"{a.run.name}: never beat the best single rule in its evaluations")
+        else:
+            print(
+                f"{a.run.name}: first beat {row['best_rule']} at step {row['step']} after "
+                f"{float(row['wall_time']):.0f} s of training "
+                f"(G {float(row['gripping_rate']):.2f} %, "
+                f"{float(row['diff_vs_best_rule']):+.2f} +- {float(row['diff_ci']):.2f})"
+            )
+
+
+if __name__ == "__main__":
+    main()
