@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 import secrets
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
@@ -20,6 +19,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import tomli_w
 
 from twin.errors import UserError
 
@@ -123,68 +123,16 @@ def dumps_json(obj: Any, indent: int | None = None) -> str:
     return json.dumps(jsonable(obj), indent=indent, allow_nan=False)
 
 
-_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
-
-
 def dumps_toml(data: Mapping[str, Any]) -> str:
-    """TOML text of a nested mapping of scalars, lists, tables and lists of tables.
-
-    ``None`` values are left out (TOML has no null). Enough for scenario files; not a general
-    TOML writer.
-    """
-    lines: list[str] = []
-    _toml_table(data, [], lines)
-    return "\n".join(lines).strip("\n") + "\n"
+    """TOML text of a nested mapping; ``None`` values are left out (TOML has no null)."""
+    return tomli_w.dumps(_toml_ready(data))
 
 
-def _toml_key(key: str) -> str:
-    return key if _BARE_KEY.match(key) else json.dumps(key, ensure_ascii=False)
-
-
-def _toml_value(value: Any) -> str:
+def _toml_ready(value: Any) -> Any:
     if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if math.isnan(value):
-            return "nan"
-        if math.isinf(value):
-            return "inf" if value > 0 else "-inf"
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+        return value.item()
     if isinstance(value, Mapping):
-        inner = ", ".join(
-            f"{_toml_key(str(k))} = {_toml_value(v)}" for k, v in value.items() if v is not None
-        )
-        return "{ " + inner + " }" if inner else "{}"
-    raise TypeError(f"cannot write {type(value).__name__} as TOML")
-
-
-def _is_table_list(value: Any) -> bool:
-    return (
-        isinstance(value, list | tuple)
-        and len(value) > 0
-        and all(isinstance(v, Mapping) for v in value)
-    )
-
-
-def _toml_table(data: Mapping[str, Any], path: list[str], lines: list[str]) -> None:
-    items = [(str(k), v) for k, v in data.items() if v is not None]
-    for key, value in items:
-        if not isinstance(value, Mapping) and not _is_table_list(value):
-            lines.append(f"{_toml_key(key)} = {_toml_value(value)}")
-    for key, value in items:
-        sub = [*path, _toml_key(key)]
-        if isinstance(value, Mapping):
-            lines.extend(["", f"[{'.'.join(sub)}]"])
-            _toml_table(value, sub, lines)
-        elif _is_table_list(value):
-            for entry in value:
-                lines.extend(["", f"[[{'.'.join(sub)}]]"])
-                _toml_table(entry, sub, lines)
+        return {str(k): _toml_ready(v) for k, v in value.items() if v is not None}
+    if isinstance(value, list | tuple):
+        return [_toml_ready(v) for v in value]
+    return value

@@ -1,4 +1,4 @@
-"""The resume journal of a study folder, and atomic file writes.
+"""The resume journal of a study folder.
 
 Each finished run is one small JSON file ``DIR/runs/<run_id>.json``, written atomically by
 the coordinating process as results arrive, so an interrupted study (Ctrl-C, a killed
@@ -9,18 +9,16 @@ is refused unless the caller asks for a fresh start.
 
 from __future__ import annotations
 
-import io
 import json
 import logging
-import os
 import shutil
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from twin.output import write_table, write_text
 from twin.study.plan import StudyError
 
 log = logging.getLogger(__name__)
@@ -42,32 +40,14 @@ OUTPUTS = (
 )
 
 
-def write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temp file in the same folder, then replace)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_json(path: Path, obj: Any) -> None:
-    """Write ``obj`` as indented JSON, atomically."""
-    write_bytes(path, (json.dumps(obj, indent=1, default=str) + "\n").encode())
+    """Write ``obj`` as indented JSON, atomically; NaN stays NaN so rows round-trip exactly."""
+    write_text(json.dumps(obj, indent=1, default=str) + "\n", path)
 
 
 def write_frame(path: Path, frame: pd.DataFrame) -> None:
     """Write a DataFrame as Parquet or CSV (by suffix), atomically."""
-    if path.suffix == ".parquet":
-        buf = io.BytesIO()
-        frame.to_parquet(buf, index=False)
-        write_bytes(path, buf.getvalue())
-    else:
-        write_bytes(path, frame.to_csv(index=False).encode())
+    write_table(frame, path)
 
 
 def _differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
