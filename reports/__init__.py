@@ -1,7 +1,9 @@
 """Reports: one self-contained HTML page per study folder, built from its tables only.
 
 ``build_report(DIR)`` reads the folder (``docs/study_format.md``), draws the figures and
-writes ``DIR/report.html`` atomically. No simulation happens here.
+writes ``DIR/report.html`` atomically. A training run folder (``pnp-twin train``), or a
+folder holding several, gets the training report (``reports.training``) instead. No
+simulation happens here.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from pathlib import Path
 from reports.html import render
 from reports.layout import build_page
 from reports.load import ReportError, Study, load_study
+from reports.training import build_training_page
+from reports.training_load import is_training_folder, load_runs
 
 log = logging.getLogger(__name__)
 
@@ -21,7 +25,9 @@ __all__ = ["ReportError", "Study", "build_report", "load_study", "render_report"
 
 
 def render_report(study_dir: Path | str) -> str:
-    """The report of the study in ``study_dir`` as one HTML string."""
+    """The report of the study (or training run(s)) in ``study_dir`` as one HTML string."""
+    if is_training_folder(study_dir):
+        return render(build_training_page(load_runs(study_dir)))
     return render(build_page(load_study(study_dir)))
 
 

@@ -9,11 +9,17 @@ The best static rule mix is either given (a mix such as ``SPT,SPT,SPT,FIFO``, e.
 ``best`` of a ``pnp-twin mix`` study) or searched here by coordinate ascent from the best
 single rule on separate tuning seeds (600,000 + i), so that choosing the mix does not use
 the evaluation seeds.
+
+:func:`write_evaluation` saves a comparison into a run folder for the training report:
+``evaluation.csv`` (one row per policy and seed) and ``rules.csv`` (how often the HDQN
+chose each rule per robot on the first evaluation seed, the paper's figure 13).
 """
 
 from __future__ import annotations
 
 import logging
+import os
+import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
@@ -44,6 +50,7 @@ class Comparison:
     mix: str
     seeds: list[int]
     reference: str
+    scenario: Scenario | None = None
 
 
 def gripping_rates(
@@ -139,7 +146,7 @@ def compare(
         ],
         columns=["policy", "seed", "gripping_rate"],
     )
-    return Comparison(table, runs, mix, seed_list, reference)
+    return Comparison(table, runs, mix, seed_list, reference, line)
 
 
 def verdict(comparison: Comparison) -> dict[str, bool]:
@@ -150,3 +157,68 @@ def verdict(comparison: Comparison) -> dict[str, bool]:
         for row in t.itertuples()
         if row.policy != comparison.reference
     }
+
+
+def policy_kind(name: str, reference: str) -> str:
+    """'hdqn', 'rule' or 'mix' for a policy name of a comparison."""
+    if name == reference:
+        return "hdqn"
+    return "rule" if name in RULES else "mix"
+
+
+def rule_counts(scenario: Scenario, hdqn: str | Path, seed: int) -> pd.DataFrame:
+    """How often the HDQN chose each rule per robot in one run: robot, rule, count
+    (``NooP`` counts the decisions with no candidate, where no rule was asked)."""
+    from policies.hdqn_policy import HDQNPolicy
+
+    decisions = simulate(scenario, HDQNPolicy.load(hdqn), seed=seed).decisions
+    counts = decisions[["robot", "rule", "count"]].copy()
+    counts["robot"] = counts["robot"].astype(int) + 1  # robot 1 first, as the report names them
+    return counts.sort_values(["robot", "rule"]).reset_index(drop=True)
+
+
+def write_csv_atomic(frame: pd.DataFrame, path: Path) -> None:
+    """Write ``frame`` to ``path`` through a temporary file in the same folder."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
+            frame.to_csv(f, index=False)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) -> list[Path]:
+    """Write ``evaluation.csv`` and ``rules.csv`` of ``comparison`` into folder ``out``.
+
+    ``evaluation.csv``: scenario, mode, termination, duration, policy, kind (hdqn, rule,
+    mix), seed, gripping_rate; one row per policy and seed. ``rules.csv``: robot (from 1),
+    rule, count of the HDQN on the first evaluation seed. Returns the paths written.
+    """
+    from policies.hdqn.checkpoint import read_meta
+
+    line = comparison.scenario
+    if line is None:
+        raise ValueError("write_evaluation needs a comparison made by compare()")
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    runs = comparison.runs
+    table = pd.DataFrame(
+        {
+            "scenario": line.name,
+            "mode": read_meta(hdqn).get("mode", ""),
+            "termination": line.termination,
+            "duration": line.duration,
+            "policy": runs["policy"],
+            "kind": [policy_kind(p, comparison.reference) for p in runs["policy"]],
+            "seed": runs["seed"],
+            "gripping_rate": runs["gripping_rate"],
+        }
+    )
+    paths = [folder / "evaluation.csv", folder / "rules.csv"]
+    write_csv_atomic(table, paths[0])
+    write_csv_atomic(rule_counts(line, hdqn, comparison.seeds[0]), paths[1])
+    log.info("evaluation written to %s", folder)
+    return paths

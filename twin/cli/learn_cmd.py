@@ -2,7 +2,8 @@
 
 ``train`` runs :func:`policies.hdqn.train.train` (one run, or several training seeds in
 parallel worker processes) with a progress bar; ``evaluate`` compares a trained policy with
-every rule and the best rule mix on held-out seeds and prints a table of paired differences.
+every rule and the best rule mix on held-out seeds and prints a table of paired differences
+(with ``--out DIR``, also ``evaluation.csv`` and ``rules.csv`` for the training report).
 torch is imported only when a command runs, so the rest of the CLI works without the
 ``learn`` extra.
 """
@@ -170,11 +171,19 @@ def evaluate_cmd(
     duration: Annotated[
         float | None, typer.Option("--duration", min=1.0, help="Feeding time per run, s.")
     ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Also write evaluation.csv and rules.csv here (e.g. the run folder).",
+            show_default=False,
+        ),
+    ] = None,
     sets: SetOpt = None,
 ) -> None:
     """Compare a trained HDQN with every rule and the best rule mix, paired by seed."""
     _need_torch()
-    from policies.hdqn.evaluate import compare
+    from policies.hdqn.evaluate import compare, write_evaluation
     from policies.registry import make_policy
 
     prefix, sep, folder = policy.partition(":")
@@ -183,6 +192,8 @@ def evaluate_cmd(
     line = load_scenario(scenario, parse_sets(sets or []))
     if mix is not None:
         make_policy(mix, line.robots.count)  # a bad mix fails here, in one line
+    if out is not None and out.exists() and not out.is_dir():
+        fail(f"--out: '{out}' is a file; give a folder (e.g. the run folder)")
     result = compare(line, folder, seeds=seeds, first_seed=first_seed, mix=mix, duration=duration)
     table = Table(
         title=f"{line.name}: gripping rate on seeds {result.seeds[0]}..{result.seeds[-1]}",
@@ -211,3 +222,6 @@ def evaluate_cmd(
     if not console.is_terminal:
         console.width = max(console.width, 120)
     console.print(table)
+    if out is not None:
+        for path in write_evaluation(result, folder, out):
+            typer.echo(f"wrote {path}", err=True)

@@ -22,7 +22,7 @@ def report(
         Path,
         typer.Argument(
             metavar="DIR",
-            help="A study folder written by sweep, size or mix.",
+            help="A study folder (sweep, size, mix), a training run, or a folder of runs.",
             show_default=False,
         ),
     ],
@@ -36,7 +36,7 @@ def report(
         ),
     ] = None,
 ) -> None:
-    """Build the self-contained HTML report of a study folder (opens offline)."""
+    """Build the self-contained HTML report of a study or training folder (opens offline)."""
     if out is not None and out.is_dir():
         raise UserError(f"--out {out}: is a folder; give a file name such as {out}/report.html")
     from reports import build_report  # the front end imports reports; the core never does
