@@ -10,7 +10,7 @@ from typing import Any
 
 import pandas as pd
 
-from reports import figures
+from reports import figures, record_figures, style
 from reports.html import Page, Section, esc, table_html
 from reports.load import Study
 from reports.text import (
@@ -30,7 +30,7 @@ from reports.text import (
 )
 
 TIMELINE_SECONDS = 20.0
-MAX_POLICIES = 8  # one colour each in figures.PALETTE
+MAX_POLICIES = 8  # one colour each in style.PALETTE
 KINDS = {"sweep": "Parameter sweep", "size": "Sizing study", "mix": "Rule-mix search"}
 
 
@@ -269,7 +269,7 @@ def sweep_section(study: Study) -> Section | None:
         return None
     ref = reference_point(study)
     shown = shown_policies(study)
-    colors = figures.policy_colors(shown)
+    colors = style.policy_colors(shown)
     items: list[Any] = []
     for path in study.varying:
         fixed = {k: v for k, v in ref.items() if k != path}
@@ -299,7 +299,7 @@ def policy_section(study: Study) -> Section | None:
     if len(study.policies) < 2 or paired is None or paired.empty:
         return None
     shown = shown_policies(study)
-    colors = figures.policy_colors(shown)
+    colors = style.policy_colors(shown)
     fig = figures.policy_figure(paired, list(study.grid), shown, colors)
     intro = "Each policy's gripping rate minus the best policy's at the same grid point, paired by "
     intro += "replication. An error bar that crosses zero means the data cannot tell the two apart."
@@ -310,13 +310,13 @@ def policy_section(study: Study) -> Section | None:
 
 def robots_section(study: Study) -> Section | None:
     results = study.results
-    if results is None or figures.robot_count(results) == 0:
+    if results is None or record_figures.robot_count(results) == 0:
         return None
     point, policy = showcase_point(study)
     runs = at_point(results, point)
     if runs[runs["policy"] == policy].empty:
         return None
-    fig = figures.robots_figure(results, point, policy)
+    fig = record_figures.robots_figure(results, point, policy)
     intro = "Where each robot's time goes, and how many parts leave its workspace unpicked "
     intro += "(missed by the line, or left to robots downstream)."
     return Section("robots", "Robots", esc(intro), [fig])
@@ -335,9 +335,9 @@ def records_section(study: Study) -> Section | None:
     )
     items: list[Any] = []
     if t1 > t0:
-        items.append(figures.timeline_figure(study.parts, study.spans, t0, t1, n))
+        items.append(record_figures.timeline_figure(study.parts, study.spans, t0, t1, n))
     if len(study.parts):
-        items.append(figures.belt_figure(study.parts, scenario, t0))
+        items.append(record_figures.belt_figure(study.parts, scenario, t0))
     if not items:
         return None
     run = study.run

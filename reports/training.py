@@ -13,8 +13,8 @@ import pandas as pd
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from reports.figures import PALETTE, cap_percent, rgba, style
 from reports.html import Page, Section, esc, table_html
+from reports.style import PALETTE, cap_percent, rgba, style
 from reports.text import fmt_pct, fmt_seconds
 from reports.training_load import TrainingRun
 from twin.study.summary import t_interval

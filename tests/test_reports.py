@@ -10,7 +10,15 @@ import pandas as pd
 import pytest
 from plotly.offline import get_plotlyjs
 
-from reports import ReportError, build_report, figures, layout, load_study, render_report
+from reports import (
+    ReportError,
+    build_report,
+    figures,
+    layout,
+    load_study,
+    record_figures,
+    render_report,
+)
 from reports.text import fmt_pct, fmt_pm, key_findings, reference_point, sizing_text
 from tests.study_fixture import make_study
 
@@ -98,7 +106,7 @@ def test_policy_figure_gaps_are_paired_differences(grid3d: Path) -> None:
 def test_timeline_and_belt_come_from_the_records(sweep3: Path) -> None:
     study = load_study(sweep3)
     assert study.parts is not None and study.spans is not None and study.run is not None
-    fig = figures.timeline_figure(study.parts, study.spans, 10.0, 30.0, 4)
+    fig = record_figures.timeline_figure(study.parts, study.spans, 10.0, 30.0, 4)
     busy = next(t for t in fig.data if t.name.startswith("Busy"))
     picked = study.parts[study.parts["outcome"] == "picked"]
     in_window = picked[(picked["placed_at"] > 10) & (picked["decided_at"] < 30)]
@@ -108,8 +116,8 @@ def test_timeline_and_belt_come_from_the_records(sweep3: Path) -> None:
         and max(b + x for b, x in zip(busy.base, busy.x, strict=True)) <= 30.0
     )
     scenario = study.run["scenario"]
-    belt = figures.belt_figure(study.parts, scenario, 12.0)
-    on = figures.belt_positions(study.parts, scenario["belt"]["speed"], 12.0)
+    belt = record_figures.belt_figure(study.parts, scenario, 12.0)
+    on = record_figures.belt_positions(study.parts, scenario["belt"]["speed"], 12.0)
     assert sum(len(t.x) for t in belt.data) == sum(len(d) for d in on.values()) > 0
     for d in on.values():
         assert ((d["x"] >= 0) & (d["x"] <= 2.4)).all()
@@ -122,7 +130,7 @@ def test_robots_figure_stacks_time_shares(sweep3: Path) -> None:
     study = load_study(sweep3)
     point, policy = layout.showcase_point(study)
     assert policy == study.run["policy"] and point == {"robots.arm_speed": 2}
-    fig = figures.robots_figure(study.results, point, policy)
+    fig = record_figures.robots_figure(study.results, point, policy)
     stacked = [t for t in fig.data if t.xaxis == "x"]
     totals = [sum(t.y[i] for t in stacked) for i in range(4)]
     assert all(90 <= s <= 100.001 for s in totals)

@@ -1,0 +1,371 @@
+"""Figures from one run's records: robot shares, activity timeline, belt snapshot.
+
+Pure functions from the records tables to plotly figures: no files, no simulation.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import plotly.graph_objects as go
+from plotly.subplots import make_subplots
+
+from reports.style import (
+    PALETTE,
+    PART_COLORS,
+    STATE_COLORS,
+    STATE_LABELS,
+    rgba,
+    style,
+)
+from reports.text import (
+    at_point,
+    point_label,
+)
+
+
+def robot_count(results: pd.DataFrame) -> int:
+    """Number of robots from the r{i}_utilisation columns."""
+    n = 0
+    while f"r{n + 1}_utilisation" in results.columns:
+        n += 1
+    return n
+
+
+def robots_figure(results: pd.DataFrame, point: dict[str, Any], policy: str) -> go.Figure:
+    """Per robot: time shares (busy / NooP / wait / blocked / down, stacked) and parts passing
+    its workspace unpicked, averaged over the replications of one grid point and policy."""
+    runs = at_point(results, point)
+    runs = runs[runs["policy"] == policy]
+    n = robot_count(runs)
+    names = [f"Robot {i}" for i in range(1, n + 1)]
+    fig = make_subplots(
+        rows=1,
+        cols=2,
+        column_widths=[0.58, 0.42],
+        horizontal_spacing=0.1,
+        subplot_titles=["Time share per robot", "Parts leaving each workspace unpicked"],
+    )
+    columns = {"busy": "utilisation", "noop": "noop", "wait": "wait", "blocked": "blocked"}
+    columns["down"] = "down"
+    for state, col in columns.items():
+        share = [100 * float(runs[f"r{i}_{col}"].mean()) for i in range(1, n + 1)]
+        if state != "busy" and max(share, default=0) < 0.05:
+            continue  # a state no robot was ever in only clutters the legend
+        fig.add_trace(
+            go.Bar(
+                x=names,
+                y=share,
+                name=STATE_LABELS[state],
+                marker_color=STATE_COLORS[state],
+                hovertemplate="%{x}: %{y:.1f} %<extra>" + state + "</extra>",
+            ),
+            row=1,
+            col=1,
+        )
+    passed = [float(runs[f"r{i}_missed"].mean()) for i in range(1, n + 1)]
+    picks = [float(runs[f"r{i}_picks"].mean()) for i in range(1, n + 1)]
+    fig.add_trace(
+        go.Bar(
+            x=names,
+            y=passed,
+            name="Passed unpicked",
+            marker_color="#c0392b",
+            text=[f"{v:.0f}" for v in passed],
+            textposition="outside",
+            customdata=np.column_stack([picks]),
+            hovertemplate="%{x}: %{y:.1f} parts passed, %{customdata[0]:.0f} picked<extra></extra>",
+            showlegend=False,
+        ),
+        row=1,
+        col=2,
+    )
+    fig.update_layout(barmode="stack")
+    fig.update_yaxes(title="Share of the window (%)", ticksuffix=" %", range=[0, 101], row=1, col=1)
+    fig.update_yaxes(title="Parts per run", rangemode="tozero", row=1, col=2)
+    fig.update_yaxes(range=[0, max(passed, default=1) * 1.18 + 1], row=1, col=2)
+    reps = len(runs)
+    where = point_label(point, list(point)) if point else "the baseline"
+    subtitle = f"{policy} at {where} · mean of {reps} replication{'s' if reps != 1 else ''}"
+    fig = style(fig, "Robots: utilisation and missed parts", subtitle, height=450, top=110)
+    fig.update_layout(legend={"y": -0.18, "yanchor": "top", "x": 0, "xanchor": "left"})
+    fig.update_layout(margin={"b": 90})
+    return fig
+
+
+def merged_spans(spans: pd.DataFrame) -> pd.DataFrame:
+    """Consecutive spans of one robot in one state joined into one (NooPs come in ticks)."""
+    if spans.empty:
+        return spans
+    d = spans.sort_values(["robot", "start"]).reset_index(drop=True)
+    same = (
+        (d["robot"] == d["robot"].shift())
+        & (d["state"] == d["state"].shift())
+        & ((d["start"] - d["end"].shift()).abs() < 1e-6)
+    )
+    d["group"] = (~same).cumsum()
+    return (
+        d.groupby("group")
+        .agg(robot=("robot", "first"), state=("state", "first"), start=("start", "min"))
+        .join(d.groupby("group")["end"].max())
+        .reset_index(drop=True)
+    )
+
+
+def timeline_figure(
+    parts: pd.DataFrame, spans: pd.DataFrame, t0: float, t1: float, n_robots: int
+) -> go.Figure:
+    """Gantt chart of every robot over [t0, t1]: busy cycles (decided_at to placed_at of each
+    picked part) and the state spans (NooP, wait, blocked, down, interrupted)."""
+    names = [f"Robot {i}" for i in range(1, n_robots + 1)]
+    picked = parts[(parts["outcome"] == "picked") & parts["decided_at"].notna()]
+    busy = picked[(picked["placed_at"] > t0) & (picked["decided_at"] < t1)]
+    rows = [
+        pd.DataFrame(
+            {
+                "robot": busy["robot"].astype(int),
+                "state": "busy",
+                "start": busy["decided_at"],
+                "end": busy["placed_at"],
+                "info": [
+                    f"part {p} · rule {r}" for p, r in zip(busy["part"], busy["rule"], strict=True)
+                ],
+            }
+        )
+    ]
+    other = merged_spans(spans)
+    if len(other):
+        other = other[(other["end"] > t0) & (other["start"] < t1)].copy()
+        other["info"] = ""
+        rows.append(other)
+    d = pd.concat(rows, ignore_index=True)
+    d["start"] = d["start"].clip(lower=t0)
+    d["end"] = d["end"].clip(upper=t1)
+    fig = go.Figure()
+    for state in STATE_COLORS:
+        s = d[d["state"] == state]
+        if s.empty:
+            continue
+        fig.add_trace(
+            go.Bar(
+                y=[names[i] for i in s["robot"]],
+                x=s["end"] - s["start"],
+                base=s["start"],
+                orientation="h",
+                name=STATE_LABELS[state],
+                marker={"color": STATE_COLORS[state], "line": {"width": 0.5, "color": "white"}},
+                customdata=np.column_stack([s["start"], s["end"], s["info"]]),
+                hovertemplate="%{y} · "
+                + state
+                + "<br>%{customdata[0]:.2f} – %{customdata[1]:.2f} s<br>%{customdata[2]}"
+                "<extra></extra>",
+            )
+        )
+    fig.update_layout(barmode="overlay", bargap=0.35)
+    fig.update_yaxes(categoryorder="array", categoryarray=names[::-1])
+    fig.update_xaxes(title="Time (s)", range=[t0, t1])
+    fig = style(
+        fig,
+        "Robot activity timeline",
+        f"{t1 - t0:.0f} s of the recorded run, from t = {t0:.0f} s · hover a bar for the part "
+        "and rule",
+        height=max(300, 150 + 55 * n_robots),
+    )
+    fig.update_layout(legend={"y": -0.2, "yanchor": "top", "x": 0, "xanchor": "left"})
+    fig.update_layout(margin={"b": 90})
+    return fig
+
+
+def belt_positions(parts: pd.DataFrame, belt_speed: float, t: float) -> dict[str, pd.DataFrame]:
+    """Parts on the belt at instant ``t`` (fed, not yet gripped or gone), by category, with
+    their position x = v_b (t - fed_at)."""
+    on = parts[(parts["fed_at"] <= t) & (parts["left_at"] > t)].copy()
+    on["x"] = belt_speed * (t - on["fed_at"])
+    picked = on["outcome"] == "picked"
+    claimed = picked & (on["decided_at"] <= t)
+    return {
+        "to be picked": on[picked & ~claimed],
+        "claimed": on[claimed],
+        "missed": on[~picked],
+    }
+
+
+def belt_traces(parts: pd.DataFrame, belt_speed: float, t: float) -> list[go.Scatter]:
+    """The three part markers traces of one instant (always three, maybe empty)."""
+    out = []
+    for cat, d in belt_positions(parts, belt_speed, t).items():
+        robot = d["robot"].astype("Float64").fillna(-1).astype(int) + 1
+        out.append(
+            go.Scatter(
+                x=d["x"],
+                y=d["y"],
+                mode="markers",
+                name=cat,
+                marker={
+                    "color": PART_COLORS[cat],
+                    "size": 9,
+                    "line": {"width": 1, "color": "white"},
+                },
+                customdata=np.column_stack([d["part"], robot]),
+                hovertemplate="part %{customdata[0]}<br>x = %{x:.2f} m, y = %{y:.2f} m"
+                + ("<br>robot %{customdata[1]}" if cat != "missed" else "")
+                + "<extra>"
+                + cat
+                + "</extra>",
+            )
+        )
+    return out
+
+
+def belt_figure(
+    parts: pd.DataFrame,
+    scenario: dict[str, Any],
+    t: float,
+    seconds: float = 5.0,
+    step: float = 0.1,
+) -> go.Figure:
+    """The belt seen from above at instant ``t``, workspaces and bins drawn, parts coloured
+    by what happens to them; a play button and slider animate the next ``seconds``."""
+    belt = scenario.get("belt") or {}
+    length, width, speed = (
+        float(belt.get("length", 2.4)),
+        float(belt.get("width", 0.4)),
+        float(belt.get("speed", 0.8)),
+    )
+    fig = go.Figure(data=belt_traces(parts, speed, t))
+    shapes: list[dict[str, Any]] = [
+        {
+            "type": "rect",
+            "x0": 0,
+            "x1": length,
+            "y0": 0,
+            "y1": width,
+            "fillcolor": "#eef1f5",
+            "line": {"color": "#9aa5b1", "width": 1},
+            "layer": "below",
+        }
+    ]
+    for i, ((a, b), (bx, by)) in enumerate(workspace_layout(scenario), start=1):
+        color = PALETTE[(i - 1) % len(PALETTE)]
+        shapes.append(
+            {
+                "type": "rect",
+                "x0": a,
+                "x1": b,
+                "y0": 0,
+                "y1": width,
+                "fillcolor": rgba(color, 0.07),
+                "line": {"color": rgba(color, 0.8), "width": 1.5, "dash": "dot"},
+                "layer": "below",
+            }
+        )
+        half = 0.045
+        shapes.append(
+            {
+                "type": "rect",
+                "x0": bx - half,
+                "x1": bx + half,
+                "y0": by - half,
+                "y1": by + half,
+                "fillcolor": rgba(color, 0.25),
+                "line": {"color": color, "width": 1},
+            }
+        )
+        fig.add_annotation(
+            x=(a + b) / 2, y=by + half + 0.04, text=f"<b>R{i}</b> bin", showarrow=False
+        )
+    times = np.round(np.arange(t, t + seconds + 1e-9, step), 6)
+    fig.frames = [
+        go.Frame(data=belt_traces(parts, speed, float(ti)), name=f"{ti:.1f}") for ti in times
+    ]
+    slider_steps = [
+        {
+            "args": [
+                [f"{ti:.1f}"],
+                {"frame": {"duration": 0, "redraw": False}, "mode": "immediate"},
+            ],
+            "label": f"{ti:.1f}",
+            "method": "animate",
+        }
+        for ti in times
+    ]
+    play = {"frame": {"duration": int(step * 1000), "redraw": False}, "fromcurrent": True}
+    play["transition"] = {"duration": 0}
+    fig.update_layout(
+        shapes=shapes,
+        updatemenus=[
+            {
+                "type": "buttons",
+                "showactive": False,
+                "direction": "left",
+                "x": 0,
+                "y": -0.22,
+                "xanchor": "left",
+                "yanchor": "top",
+                "buttons": [
+                    {"label": "▶ Play", "method": "animate", "args": [None, play]},
+                    {
+                        "label": "❚❚ Pause",
+                        "method": "animate",
+                        "args": [[None], {"frame": {"duration": 0}, "mode": "immediate"}],
+                    },
+                ],
+            }
+        ],
+        sliders=[
+            {
+                "steps": slider_steps,
+                "x": 0.16,
+                "len": 0.84,
+                "y": -0.16,
+                "yanchor": "top",
+                "currentvalue": {
+                    "prefix": "t = ",
+                    "suffix": " s",
+                    "font": {"size": 13, "color": "#1d2733"},
+                },
+                "font": {"color": "rgba(0,0,0,0)"},  # 50 step labels would overprint
+                "ticklen": 3,
+                "pad": {"t": 0},
+            }
+        ],
+    )
+    top = max((by for _, (_, by) in workspace_layout(scenario)), default=width) + 0.12
+    fig.update_xaxes(title="Along the belt, x (m)", range=[-0.05, length + 0.05])
+    fig.update_yaxes(title="Across, y (m)", range=[-0.05, top], showgrid=False, zeroline=False)
+    fig = style(
+        fig,
+        "Belt snapshot",
+        f"Parts on the belt at t = {t:.1f} s; press play for the next {seconds:.0f} s · "
+        "dotted boxes: workspaces",
+        height=430,
+    )
+    fig.update_layout(margin={"b": 110})
+    return fig
+
+
+def workspace_layout(
+    scenario: dict[str, Any],
+) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+    """((a, b), bin position) per robot from a scenario dict, as the twin lays them out."""
+    robots = scenario.get("robots") or {}
+    width = float((scenario.get("belt") or {}).get("width", 0.4))
+    n = int(robots.get("count", 4))
+    if robots.get("workspaces"):
+        spaces = [(float(a), float(b)) for a, b in robots["workspaces"]]
+    else:
+        a = float(robots.get("first_workspace_start", 0.3))
+        size, gap = (
+            float(robots.get("workspace_length", 0.5)),
+            float(robots.get("workspace_gap", 0)),
+        )
+        spaces = [(a + i * (size + gap), a + i * (size + gap) + size) for i in range(n)]
+    offsets = {int(o["robot"]): o.get("bin_offset") for o in robots.get("overrides") or []}
+    default = robots.get("bin_offset") or (0.0, 0.2)
+    out = []
+    for i, (a, b) in enumerate(spaces, start=1):
+        dx, dy = offsets.get(i) or default
+        out.append(((a, b), ((a + b) / 2 + float(dx), width + float(dy))))
+    return out
