@@ -12,11 +12,10 @@ import pandas as pd
 import pytest
 
 from reports import ReportError, build_report, render_report
-from reports.training import (
+from reports.training import evaluation_table, mode_rows
+from reports.training_figures import (
     episode_rates,
-    evaluation_table,
     learning_figure,
-    mode_rows,
     modes_figure,
     rule_shares,
     rules_figure,
