@@ -72,8 +72,9 @@ class HDQNPolicy(RuleChoosingPolicy):
     """Greedy rule choice of a trained meta-controller (see the module docstring).
 
     ``mode`` is the training set-up: ``async``/``sync`` agents see the deciding robot's
-    workspace window plus its one-hot index; a ``single`` agent sees the whole belt and
-    picks a joint action, of which the deciding robot uses its own component.
+    workspace window plus its one-hot index (or, trained with ``view = "belt"``, the whole
+    belt plus the one-hot); a ``single`` agent sees the whole belt and picks a joint action,
+    of which the deciding robot uses its own component.
     """
 
     def __init__(self, agent: DQNAgent, meta: dict[str, Any]) -> None:
@@ -83,6 +84,9 @@ class HDQNPolicy(RuleChoosingPolicy):
         self.mode: str = meta["mode"]
         self.rules: list[str] = list(meta["rules"])
         self.channels = int(agent.obs_shape[0])
+        # checkpoints from before the view option saw windows in the multi-agent modes
+        view = meta.get("view", meta.get("train_args", {}).get("view", "window"))
+        self.whole_belt: bool = self.mode == "single" or view == "belt"
         self.name = meta.get("name", f"hdqn-{self.mode}")
         self.view: _LineView | None = None
         self.camera: BeltCamera | None = None
@@ -120,7 +124,7 @@ class HDQNPolicy(RuleChoosingPolicy):
         camera = BeltCamera(scenario, self.channels)
         camera.attach(self.view)  # type: ignore[arg-type]
         want = tuple(self.agent.obs_shape)
-        got = camera.shape if self.mode == "single" else camera.window_shape
+        got = camera.shape if self.whole_belt else camera.window_shape
         if tuple(got) != want:
             raise CheckpointError(
                 f"policy: this line gives observations of shape {tuple(got)}, the HDQN was "
@@ -138,7 +142,7 @@ class HDQNPolicy(RuleChoosingPolicy):
         view.gateway.pending = [decision.robot]
         if self.mode == "single":
             return camera.belt()[None], None
-        obs = camera.window(decision.robot)[None]
+        obs = camera.belt()[None] if self.whole_belt else camera.window(decision.robot)[None]
         return obs, robot_onehot([decision.robot], len(self.robots))
 
     def select_rule(self, decision: Decision) -> str:

@@ -243,17 +243,22 @@ def test_evaluate_command_prints_the_paired_table(trained):
         assert name in result.output
 
 
-@pytest.mark.parametrize(("mode", "channels"), [("async", 2), ("single", 3)])
-def test_policy_sees_the_same_observation_as_the_env_driver(mode, channels):
+@pytest.mark.parametrize(
+    ("mode", "channels", "view"),
+    [("async", 2, "window"), ("single", 3, "window"), ("async", 2, "belt")],
+)
+def test_policy_sees_the_same_observation_as_the_env_driver(mode, channels, view):
     from policies.hdqn.agent import robot_onehot
     from policies.hdqn_policy import HDQNPolicy
     from twin.envs.driver import EpochDriver
 
     scenario = load_scenario("paper_baseline", TINY)
     driver = EpochDriver(scenario, seed=5, channels=channels)
-    shape = driver.camera.window_shape if mode == "async" else driver.camera.shape
+    window = mode == "async" and view == "window"
+    shape = driver.camera.window_shape if window else driver.camera.shape
     agent = DQNAgent(AgentConfig(), shape, 5, 2 if mode == "async" else 0)
     meta = {"mode": mode, "rules": ["FIFO", "LIFO", "SIRO", "SD", "LD"], "n_robots": 2}
+    meta["view"] = view
     meta["scenario"] = scenario.model_dump(mode="json")
     policy = HDQNPolicy(agent, meta)
     deciding = driver.reset()
@@ -266,7 +271,7 @@ def test_policy_sees_the_same_observation_as_the_env_driver(mode, channels):
             if len(deciding) > 1 and channels == 3:
                 continue  # the busy channel: the policy sees one deciding robot at a time
             obs, extra = policy.observe(driver.line.robots[r].decision())
-            want = driver.observe(r if mode == "async" else None)
+            want = driver.observe(r if window else None)
             assert np.array_equal(obs[0], want), f"step {step}, robot {r}"
             if mode == "async":
                 assert np.array_equal(extra, robot_onehot([r], 2))
@@ -281,3 +286,84 @@ def test_training_into_a_finished_run_without_resume_is_refused(trained):
     out, folder = trained
     with pytest.raises(UserError, match="holds a run already"):
         train(_tiny_args(out, 500))
+
+
+def test_team_credit_counts_the_picks_of_the_robot_and_those_downstream():
+    from policies.hdqn.train import TeamCredit
+
+    credit = TeamCredit("downstream", 3)
+    credit.add([1, 0, 1], [0, 2])  # robot 1 had no open option in this epoch
+    credit.add([0, 1, 1], [0, 1, 2])
+    assert [credit.take(r) for r in range(3)] == [4, 2, 2]
+    assert credit.take(0) == 0  # taken once
+    team = TeamCredit("team", 3)
+    team.add([1, 0, 1], [2])
+    assert team.take(2) == 2
+
+
+def test_team_credit_on_the_driver_matches_the_options_and_all_picks():
+    """Downstream credit of the last robot is its own option's pick; team credit of the
+    first robot, whose options tile the episode, adds up to every pick of the line."""
+    from policies.hdqn.train import TeamCredit
+    from twin.envs.driver import EpochDriver
+
+    driver = EpochDriver(load_scenario("paper_baseline", TINY), seed=3)
+    down, team = TeamCredit("downstream", 2), TeamCredit("team", 2)
+    deciding, opened, team_total, checked = driver.reset(), set(), 0, 0
+    assert 0 in deciding  # the first robot decides at the first epoch
+    for step in range(400):
+        for r in deciding:
+            option, got = driver.option(r), down.take(r)
+            if r == 1 and option is not None:
+                assert got == option.picks
+                checked += 1
+        if 0 in deciding:
+            team_total += team.take(0)
+        opened |= set(deciding)
+        deciding = driver.act({r: step % 5 for r in deciding})
+        down.add(driver.step_picks, opened)
+        team.add(driver.step_picks, opened)
+    assert checked > 50
+    assert team_total + team.take(0) == sum(driver.total_picks) > 50
+
+
+def test_belt_view_with_downstream_reward_trains_and_runs(tmp_path):
+    folder = train(_tiny_args(tmp_path, 200, view="belt", channels=2, reward="downstream"))
+    meta = json.loads((folder / "meta.json").read_text())
+    assert meta["view"] == "belt" and meta["train_args"]["reward"] == "downstream"
+    assert meta["obs_shape"] == [2, 8, 64] and meta["n_extra"] == 2
+    scenario = with_overrides(
+        load_scenario("paper_baseline", TINY), {"duration": 10.0, "warmup": 1.0}
+    )
+    a = simulate(scenario, make_policy(f"hdqn:{folder}"), seed=3)
+    b = simulate(scenario, make_policy(f"hdqn:{folder}"), seed=3)
+    assert a.kpis["parts_picked"] > 0 and a.kpis == b.kpis
+
+
+def test_checkpoints_without_the_view_option_still_see_windows():
+    from policies.hdqn_policy import HDQNPolicy
+
+    folder = Path(__file__).resolve().parents[1] / "models" / "paper_baseline__async"
+    if not (folder / "meta.json").is_file():
+        pytest.skip("no shipped checkpoint")
+    assert "view" not in json.loads((folder / "meta.json").read_text())
+    policy = HDQNPolicy.load(folder)
+    assert not policy.whole_belt and policy.agent.obs_shape == (1, 8, 14)
+    scenario = with_overrides(load_scenario("paper_baseline"), {"duration": 5.0, "warmup": 1.0})
+    assert simulate(scenario, policy, seed=1).kpis["parts_picked"] > 0
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"view": "eyes"}, "view: 'eyes' is not a view; allowed window, belt"),
+        ({"reward": "gold"}, "reward: 'gold' is not a reward; allowed own, downstream, team"),
+        ({"mode": "single", "view": "belt"}, "single mode"),
+    ],
+)
+def test_bad_view_or_reward_is_a_one_line_user_error(tmp_path, kw, match):
+    from twin.errors import UserError
+
+    with pytest.raises(UserError, match=match) as e:
+        train(_tiny_args(tmp_path, 10, **kw))
+    assert "\n" not in str(e.value)

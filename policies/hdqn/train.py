@@ -18,6 +18,20 @@ Modes (:data:`policies.hdqn.MODES`):
   execution); each sees its workspace window and its one-hot index; t_all.
 - ``async``: as ``sync`` under t_continue: the paper's hierarchical multi-agent set-up.
 
+Two options for the multi-agent modes (the defaults are the paper's and those of the shipped
+checkpoints; a checkpoint without them in its ``train_args`` reads as the defaults):
+
+- ``view``: ``window`` (each agent sees its workspace window, partial observability) or
+  ``belt`` (each agent sees the whole belt image plus its one-hot index: centralised
+  observations, still decentralised execution, allowed by the CTDE framing);
+- ``reward``: ``own`` (eq. 1 + eq. 2 of the robot's own option), or team credit for the
+  option: ``downstream`` counts the picks completed during the option by the robot and every
+  robot downstream of it (the only robots its choice can affect; upstream picks do not
+  depend on it), ``team`` by every robot; eq. 2's NooP penalty is added in both. The
+  discounted sum of these counts is the discounted number of parts gripped, which is what
+  the gripping rate G measures (eq. 1 per robot instead rewards each robot's own rate, whose
+  optimum is the greedy per-robot rule, SPT). Weighted by ``reward_weights`` as eq. 1/eq. 2.
+
 A step is one meta-controller transition (one robot's decision in ``sync``/``async``, one
 epoch in ``single``). Seeds: training episodes use seeds >= 1,000,000 drawn from the run's
 generator; periodic evaluation uses validation seeds 500,000 + i; ``pnp-twin evaluate``
@@ -33,7 +47,7 @@ import os
 import random
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -52,7 +66,7 @@ from policies.hdqn.agent import (
 from policies.hdqn.checkpoint import META, load_agent, save_checkpoint
 from policies.hdqn.replay import ReplayBuffer
 from policies.rules import RULES
-from twin.envs.driver import EnvError, EpochDriver, check_rules
+from twin.envs.driver import EnvError, EpochDriver, check_rules, intrinsic_reward
 from twin.loader import load_scenario, with_overrides
 from twin.run import simulate
 from twin.scenario import Scenario
@@ -61,6 +75,10 @@ from twin.study.summary import t_interval
 log = logging.getLogger(__name__)
 
 TRAIN_SEED_BASE = 1_000_000
+VIEWS = ("window", "belt")
+"""Multi-agent observations: the robot's workspace window, or the whole belt."""
+REWARDS = ("own", "downstream", "team")
+"""Multi-agent rewards: eq. 1 + eq. 2 of the robot's option, or team picks during it."""
 VALIDATION_SEED_BASE = 500_000
 
 
@@ -86,6 +104,10 @@ class TrainArgs:
     """Rules an action index refers to (the options): the paper's five plus SPT."""
     channels: int = 1
     """Observation channels (1 = the paper's occupancy image; 2 adds claimed parts)."""
+    view: str = "window"
+    """Multi-agent observation: window (own workspace window) | belt (the whole belt)."""
+    reward: str = "own"
+    """Multi-agent reward: own (eq. 1 + eq. 2) | downstream | team (picks of the option)."""
     episode_time: float = 120.0
     """Simulated feeding time of a training episode, s (shorter than a scenario run)."""
     lr: float = 2.5e-4
@@ -204,6 +226,12 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
     if args.mode not in MODES:
         raise EnvError(f"mode: '{args.mode}' is not a mode; allowed {', '.join(MODES)}")
     rules = check_rules(args.rules)
+    if args.view not in VIEWS:
+        raise EnvError(f"view: '{args.view}' is not a view; allowed {', '.join(VIEWS)}")
+    if args.reward not in REWARDS:
+        raise EnvError(f"reward: '{args.reward}' is not a reward; allowed {', '.join(REWARDS)}")
+    if args.mode == "single" and (args.view, args.reward) != ("window", "own"):
+        raise EnvError("view/reward: single mode sees the whole belt with eq. 1 + eq. 2 only")
     base = load_scenario(args.scenario, args.overrides or None)
     termination = TERMINATION[args.mode]
     train_scenario = with_overrides(
@@ -228,7 +256,8 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
     )
     n, k = driver.n_robots, len(rules)
     multi = args.mode != "single"
-    obs_shape = driver.camera.window_shape if multi else driver.camera.shape
+    window = multi and args.view == "window"
+    obs_shape = driver.camera.window_shape if window else driver.camera.shape
     n_actions = k if multi else k**n
     n_extra = n if multi else 0
     config = AgentConfig(
@@ -256,6 +285,7 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
         return {
             "name": f"hdqn-{args.mode}",
             "mode": args.mode,
+            "view": args.view,
             "termination": termination,
             "rules": list(rules),
             "n_robots": n,
@@ -337,6 +367,17 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
     last_g = float("nan")
     pending: dict[int, tuple[np.ndarray, np.ndarray | None, int, float]] = {}
     weights, penalty = args.reward_weights, args.noop_penalty
+    credit = None if args.reward == "own" else TeamCredit(args.reward, n)
+
+    def reward_of(robot: int) -> float:
+        if credit is None:
+            return driver.reward(robot, weights, penalty)
+        picks = credit.take(robot)
+        option = driver.option(robot)
+        if option is None:
+            return 0.0
+        return weights[0] * picks + weights[1] * intrinsic_reward(option, penalty)
+
     started, logged_at, logged_step = time.perf_counter(), time.perf_counter(), counters["step"]
     wall_before = counters["wall_time"]
     deciding = driver.reset(int(rng.integers(TRAIN_SEED_BASE, 2**31)))
@@ -359,10 +400,10 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
     while counters["step"] < args.steps:
         now = driver.now
         if multi:
-            obs = np.stack([driver.observe(r) for r in deciding])
+            obs = np.stack([driver.observe(r if window else None) for r in deciding])
             extra = robot_onehot(deciding, n)
             for j, r in enumerate(deciding):
-                add(r, obs[j], extra[j], driver.reward(r, weights, penalty))
+                add(r, obs[j], extra[j], reward_of(r))
             chosen = agent.act(obs, extra, epsilon, rng)
             for j, r in enumerate(deciding):
                 pending[r] = (obs[j], extra[j], int(chosen[j]), now)
@@ -375,6 +416,8 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
             per_robot = decode_joint(joint, n, k)
             actions = {r: per_robot[r] for r in deciding}
         deciding = driver.act(actions)
+        if credit is not None:
+            credit.add(driver.step_picks, pending)
         epsilon = linear_epsilon(
             counters["step"], args.eps_start, args.eps_end, int(args.eps_fraction * args.steps)
         )
@@ -382,6 +425,8 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
             last_g = driver.gripping_rate()
             counters["episode"] += 1
             pending.clear()
+            if credit is not None:
+                credit.clear()
             deciding = driver.reset(int(rng.integers(TRAIN_SEED_BASE, 2**31)))
         step = counters["step"]
         if step - logged_step >= args.log_every or step >= args.steps:
@@ -411,6 +456,36 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
     train_log.close()
     eval_log.close()
     return folder
+
+
+class TeamCredit:
+    """Team picks credited to each robot's open option (the ``downstream``/``team`` rewards).
+
+    After every epoch, :meth:`add` credits each robot with an open option with the picks
+    completed during the epoch by the robots it answers for (itself and those downstream
+    of it, or all); :meth:`take` returns a robot's count when its option ends and zeroes it.
+    """
+
+    def __init__(self, reward: str, n_robots: int) -> None:
+        if reward not in ("downstream", "team"):
+            raise EnvError(f"reward: '{reward}' is not a team reward; allowed downstream, team")
+        first = (lambda r: r) if reward == "downstream" else (lambda r: 0)
+        self.first = [first(r) for r in range(n_robots)]
+        self.picks = [0] * n_robots
+
+    def add(self, step_picks: list[int], open_robots: Iterable[int]) -> None:
+        """Credit the picks of one epoch (per robot) to the robots whose option is open."""
+        for r in open_robots:
+            self.picks[r] += sum(step_picks[self.first[r] :])
+
+    def take(self, robot: int) -> int:
+        """The picks credited to ``robot``'s option that just ended (then zero)."""
+        picks, self.picks[robot] = self.picks[robot], 0
+        return picks
+
+    def clear(self) -> None:
+        """Forget every open option (a new episode)."""
+        self.picks = [0] * len(self.picks)
 
 
 def read_log(folder: Path) -> list[dict[str, str]]:

@@ -28,7 +28,7 @@ from twin.cli.app import app, fail
 from twin.loader import load_scenario, parse_sets
 
 if TYPE_CHECKING:
-    from policies.hdqn.train import TrainArgs
+    from policies.hdqn.train import REWARDS, VIEWS, TrainArgs
 
 
 class Mode(StrEnum):
@@ -107,6 +107,14 @@ def train_cmd(
     eval_seeds: Annotated[
         int, typer.Option("--eval-seeds", min=2, help="Validation seeds per evaluation.")
     ] = 4,
+    view: Annotated[
+        str,
+        typer.Option("--view", help="Multi-agent input: window (own workspace) | belt (whole)."),
+    ] = "window",
+    reward: Annotated[
+        str,
+        typer.Option("--reward", help="Multi-agent reward: own (eq. 1 + 2) | downstream | team."),
+    ] = "own",
     sets: SetOpt = None,
 ) -> None:
     """Train the HDQN meta-controller; writes OUT/<scenario>__<mode>__<seed>/."""
@@ -117,6 +125,10 @@ def train_cmd(
 
     if network not in PRESETS:
         fail(f"--network: '{network}' is not a preset; allowed {', '.join(PRESETS)}")
+    if view not in VIEWS:
+        fail(f"--view: '{view}' is not a view; allowed {', '.join(VIEWS)}")
+    if reward not in REWARDS:
+        fail(f"--reward: '{reward}' is not a reward; allowed {', '.join(REWARDS)}")
     load_scenario(scenario, parse_sets(sets or []))  # fail early on a bad scenario
     base = TrainArgs(
         scenario=scenario,
@@ -130,6 +142,8 @@ def train_cmd(
         resume=resume,
         eval_every=eval_every,
         eval_seeds=eval_seeds,
+        view=view,
+        reward=reward,
         overrides=parse_sets(sets or []),
     )
     runs = [replace(base, seed=s) for s in range(seed, seed + seeds)]
