@@ -367,3 +367,20 @@ def test_bad_view_or_reward_is_a_one_line_user_error(tmp_path, kw, match):
     with pytest.raises(UserError, match=match) as e:
         train(_tiny_args(tmp_path, 10, **kw))
     assert "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize(
+    ("option", "value"), [("--view", "bogus"), ("--reward", "bogus"), ("--network", "huge")]
+)
+def test_train_command_rejects_a_bad_option_in_one_line(option, value, tmp_path):
+    from typer.testing import CliRunner
+
+    import twin.cli.learn_cmd  # noqa: F401
+    from twin.cli.app import app
+
+    args = ["train", "paper_baseline", "--out", str(tmp_path), "--steps", "10", option, value]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2
+    assert f"{option}: '{value}'" in result.output
+    assert "Traceback" not in result.output
+    assert not any(tmp_path.iterdir())  # nothing trained, nothing written

@@ -28,7 +28,7 @@ from twin.cli.app import app, fail
 from twin.loader import load_scenario, parse_sets
 
 if TYPE_CHECKING:
-    from policies.hdqn.train import REWARDS, VIEWS, TrainArgs
+    from policies.hdqn.train import TrainArgs
 
 
 class Mode(StrEnum):
@@ -120,7 +120,7 @@ def train_cmd(
     """Train the HDQN meta-controller; writes OUT/<scenario>__<mode>__<seed>/."""
     _need_torch()
     from policies.hdqn.network import PRESETS
-    from policies.hdqn.train import TrainArgs
+    from policies.hdqn.train import REWARDS, VIEWS, TrainArgs
     from twin.envs.driver import check_rules
 
     if network not in PRESETS:
