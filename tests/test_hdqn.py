@@ -289,7 +289,7 @@ def test_training_into_a_finished_run_without_resume_is_refused(trained):
 
 
 def test_team_credit_counts_the_picks_of_the_robot_and_those_downstream():
-    from policies.hdqn.train import TeamCredit
+    from policies.hdqn.credit import TeamCredit
 
     credit = TeamCredit("downstream", 3)
     credit.add([1, 0, 1], [0, 2])  # robot 1 had no open option in this epoch
@@ -304,7 +304,7 @@ def test_team_credit_counts_the_picks_of_the_robot_and_those_downstream():
 def test_team_credit_on_the_driver_matches_the_options_and_all_picks():
     """Downstream credit of the last robot is its own option's pick; team credit of the
     first robot, whose options tile the episode, adds up to every pick of the line."""
-    from policies.hdqn.train import TeamCredit
+    from policies.hdqn.credit import TeamCredit
     from twin.envs.driver import EpochDriver
 
     driver = EpochDriver(load_scenario("paper_baseline", TINY), seed=3)

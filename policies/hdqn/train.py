@@ -40,14 +40,11 @@ defaults to seeds 0..n-1, so all three sets are disjoint.
 
 from __future__ import annotations
 
-import csv
-import json
 import logging
-import os
 import random
 import time
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -64,7 +61,9 @@ from policies.hdqn.agent import (
     robot_onehot,
 )
 from policies.hdqn.checkpoint import META, load_agent, save_checkpoint
+from policies.hdqn.credit import TeamCredit
 from policies.hdqn.replay import ReplayBuffer
+from policies.hdqn.runlog import CsvLog, truncate_log
 from policies.rules import RULES
 from twin.envs.driver import EnvError, EpochDriver, check_rules, intrinsic_reward
 from twin.loader import load_scenario, with_overrides
@@ -185,39 +184,6 @@ def rule_baselines(scenario: Scenario, seeds: list[int]) -> dict[str, list[float
         r: [simulate(scenario, make_policy(r), seed=s).kpis["gripping_rate"] for s in seeds]
         for r in RULES
     }
-
-
-def truncate_log(path: Path, step: int) -> None:
-    """Drop the rows of a CSV log after ``step`` (atomically), e.g. before a resume."""
-    if not path.is_file():
-        return
-    with path.open(newline="") as f:
-        rows = list(csv.reader(f))
-    keep = rows[:1] + [r for r in rows[1:] if r and int(r[0]) <= step]
-    if len(keep) == len(rows):
-        return
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="") as f:
-        csv.writer(f).writerows(keep)
-    os.replace(tmp, path)
-
-
-class CsvLog:
-    """Rows appended to a CSV file, flushed each time (readable while training)."""
-
-    def __init__(self, path: Path, columns: list[str], append: bool) -> None:
-        fresh = not (append and path.is_file())
-        self.file = path.open("w" if fresh else "a", newline="")
-        self.writer = csv.writer(self.file)
-        if fresh:
-            self.writer.writerow(columns)
-
-    def row(self, values: list[Any]) -> None:
-        self.writer.writerow([f"{v:.6g}" if isinstance(v, float) else v for v in values])
-        self.file.flush()
-
-    def close(self) -> None:
-        self.file.close()
 
 
 def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = None) -> Path:
@@ -456,46 +422,3 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
     train_log.close()
     eval_log.close()
     return folder
-
-
-class TeamCredit:
-    """Team picks credited to each robot's open option (the ``downstream``/``team`` rewards).
-
-    After every epoch, :meth:`add` credits each robot with an open option with the picks
-    completed during the epoch by the robots it answers for (itself and those downstream
-    of it, or all); :meth:`take` returns a robot's count when its option ends and zeroes it.
-    """
-
-    def __init__(self, reward: str, n_robots: int) -> None:
-        if reward not in ("downstream", "team"):
-            raise EnvError(f"reward: '{reward}' is not a team reward; allowed downstream, team")
-        first = (lambda r: r) if reward == "downstream" else (lambda r: 0)
-        self.first = [first(r) for r in range(n_robots)]
-        self.picks = [0] * n_robots
-
-    def add(self, step_picks: list[int], open_robots: Iterable[int]) -> None:
-        """Credit the picks of one epoch (per robot) to the robots whose option is open."""
-        for r in open_robots:
-            self.picks[r] += sum(step_picks[self.first[r] :])
-
-    def take(self, robot: int) -> int:
-        """The picks credited to ``robot``'s option that just ended (then zero)."""
-        picks, self.picks[robot] = self.picks[robot], 0
-        return picks
-
-    def clear(self) -> None:
-        """Forget every open option (a new episode)."""
-        self.picks = [0] * len(self.picks)
-
-
-def read_log(folder: Path) -> list[dict[str, str]]:
-    """The rows of a run's log.csv."""
-    with (Path(folder) / "log.csv").open() as f:
-        return list(csv.DictReader(f))
-
-
-def write_summary(folder: Path, data: dict[str, Any]) -> None:
-    """Write ``summary.json`` atomically."""
-    tmp = Path(folder) / "summary.json.tmp"
-    tmp.write_text(json.dumps(data, indent=2) + "\n")
-    os.replace(tmp, Path(folder) / "summary.json")
