@@ -9,8 +9,6 @@ simulation happens here.
 from __future__ import annotations
 
 import logging
-import os
-import tempfile
 from pathlib import Path
 
 from reports.html import render
@@ -18,6 +16,7 @@ from reports.layout import build_page
 from reports.load import ReportError, Study, load_study
 from reports.training import build_training_page
 from reports.training_load import is_training_folder, load_runs
+from twin.output import write_text
 
 log = logging.getLogger(__name__)
 
@@ -31,19 +30,6 @@ def render_report(study_dir: Path | str) -> str:
     return render(build_page(load_study(study_dir)))
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, 0o644)  # mkstemp makes it private; a report is meant to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def build_report(study_dir: Path | str, out: Path | str | None = None) -> Path:
     """Write the report of ``study_dir`` to ``out`` (default ``study_dir/report.html``)."""
     study_dir = Path(study_dir)
@@ -51,6 +37,6 @@ def build_report(study_dir: Path | str, out: Path | str | None = None) -> Path:
     page = render_report(study_dir)
     if not target.parent.is_dir():
         raise ReportError(f"--out {target}: folder {target.parent} does not exist")
-    write_atomic(target, page)
+    write_text(page, target)
     log.info("report written to %s (%.1f MB)", target, len(page) / 1e6)
     return target

@@ -58,8 +58,8 @@ def check_table_path(path: str | Path, option: str = "output") -> Path:
 
 
 @contextmanager
-def _atomic(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success it replaces ``path``."""
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` to write; on success it replaces ``path``."""
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -79,7 +79,7 @@ def _atomic(path: str | Path) -> Iterator[Path]:
 
 def write_text(text: str, path: str | Path) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically; return the path."""
-    with _atomic(path) as tmp:
+    with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(path)
 
@@ -98,7 +98,7 @@ def write_table(df: pd.DataFrame, path: str | Path, option: str = "output") -> P
         ".csv": lambda tmp: df.to_csv(tmp, index=False),
         ".parquet": lambda tmp: df.to_parquet(tmp, index=False),
     }
-    with _atomic(p) as tmp:
+    with atomic_path(p) as tmp:
         writers[p.suffix.lower()](tmp)
     return p
 

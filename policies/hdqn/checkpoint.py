@@ -16,7 +16,6 @@ reads tensors with safetensors and JSON with ``json``: no code is ever unpickled
 from __future__ import annotations
 
 import json
-import os
 import platform
 from dataclasses import asdict
 from pathlib import Path
@@ -28,6 +27,7 @@ from safetensors.torch import load_file, save_file
 
 from policies.hdqn.agent import AgentConfig, DQNAgent
 from twin.errors import UserError
+from twin.output import atomic_path, write_text
 
 FORMAT = 1
 MODEL = "model.safetensors"
@@ -57,15 +57,12 @@ def versions() -> dict[str, str]:
 
 
 def _atomic_json(path: Path, data: dict[str, Any]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
-    os.replace(tmp, path)
+    write_text(json.dumps(data, indent=2, sort_keys=True) + "\n", path)
 
 
 def _atomic_tensors(path: Path, tensors: dict[str, torch.Tensor]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    save_file({k: v.detach().cpu().contiguous() for k, v in tensors.items()}, str(tmp))
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        save_file({k: v.detach().cpu().contiguous() for k, v in tensors.items()}, str(tmp))
 
 
 def save_checkpoint(

@@ -18,8 +18,6 @@ chose each rule per robot on the first evaluation seed, the paper's figure 13).
 from __future__ import annotations
 
 import logging
-import os
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
@@ -32,6 +30,7 @@ from policies.registry import make_policy
 from policies.rules import RULES
 from twin.decision import Policy
 from twin.loader import with_overrides
+from twin.output import write_table
 from twin.run import simulate
 from twin.scenario import Scenario
 from twin.study.summary import t_interval
@@ -177,19 +176,6 @@ def rule_counts(scenario: Scenario, hdqn: str | Path, seed: int) -> pd.DataFrame
     return counts.sort_values(["robot", "rule"]).reset_index(drop=True)
 
 
-def write_csv_atomic(frame: pd.DataFrame, path: Path) -> None:
-    """Write ``frame`` to ``path`` through a temporary file in the same folder."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            frame.to_csv(f, index=False)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) -> list[Path]:
     """Write ``evaluation.csv`` and ``rules.csv`` of ``comparison`` into folder ``out``.
 
@@ -218,7 +204,7 @@ def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) 
         }
     )
     paths = [folder / "evaluation.csv", folder / "rules.csv"]
-    write_csv_atomic(table, paths[0])
-    write_csv_atomic(rule_counts(line, hdqn, comparison.seeds[0]), paths[1])
+    write_table(table, paths[0])
+    write_table(rule_counts(line, hdqn, comparison.seeds[0]), paths[1])
     log.info("evaluation written to %s", folder)
     return paths
