@@ -24,6 +24,24 @@ from twin.errors import UserError
 USER_ERROR = 2
 INTERRUPTED = 130
 
+# Arguments and options shared by the command modules.
+ScenarioArg = Annotated[
+    str,
+    typer.Argument(
+        metavar="SCENARIO",
+        help="A scenario file (.toml, .yaml) or the name of a shipped one (see `pnp-twin list`).",
+        show_default=False,
+    ),
+]
+SetOpt = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--set",
+        metavar="PATH=VALUE",
+        help="Override a scenario field, e.g. --set robots.arm_speed=4 (repeatable).",
+    ),
+]
+
 
 def fail(message: str, code: int = USER_ERROR) -> NoReturn:
     """Print ``error: message`` as one line on stderr and exit with ``code``."""

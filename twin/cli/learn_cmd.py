@@ -24,7 +24,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from twin.cli.app import app, fail
+from twin.cli.app import ScenarioArg, SetOpt, app, fail
 from twin.loader import load_scenario, parse_sets
 
 if TYPE_CHECKING:
@@ -37,16 +37,6 @@ class Mode(StrEnum):
     single = "single"
     sync = "sync"
     async_ = "async"
-
-
-ScenarioArg = Annotated[
-    str,
-    typer.Argument(help="A scenario file or the name of a shipped one.", show_default=False),
-]
-SetOpt = Annotated[
-    list[str] | None,
-    typer.Option("--set", metavar="PATH=VALUE", help="Override a scenario field (repeatable)."),
-]
 
 
 def _need_torch() -> None:

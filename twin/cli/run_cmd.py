@@ -22,7 +22,7 @@ from rich.console import Console
 from rich.table import Table
 
 from policies import make_policy
-from twin.cli.app import app
+from twin.cli.app import ScenarioArg, SetOpt, app
 from twin.feeder import read_trace
 from twin.loader import ScenarioError, load_scenario, parse_sets, shipped_scenarios
 from twin.output import (
@@ -35,23 +35,6 @@ from twin.output import (
 )
 from twin.run import RunResult, simulate
 from twin.scenario import Scenario
-
-ScenarioArg = Annotated[
-    str,
-    typer.Argument(
-        metavar="SCENARIO",
-        help="A scenario file (.toml, .yaml) or the name of a shipped one (see `pnp-twin list`).",
-        show_default=False,
-    ),
-]
-SetOpt = Annotated[
-    list[str] | None,
-    typer.Option(
-        "--set",
-        metavar="PATH=VALUE",
-        help="Override a scenario field, e.g. --set robots.arm_speed=4 (repeatable).",
-    ),
-]
 
 
 class TextFormat(StrEnum):

@@ -36,7 +36,7 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
-from twin.cli.app import app
+from twin.cli.app import SetOpt, app
 from twin.errors import UserError
 from twin.loader import load_scenario, parse_sets
 from twin.scenario import Scenario
@@ -79,14 +79,6 @@ AddressOpt = Annotated[
 ]
 RepsOpt = Annotated[
     int | None, typer.Option("--replications", "-r", help="Replications (default sweep's).")
-]
-SetOpt = Annotated[
-    list[str] | None,
-    typer.Option(
-        "--set",
-        metavar="PATH=VALUE",
-        help="Override a scenario field, e.g. --set sweep.duration=300 (repeatable).",
-    ),
 ]
 PolicyOpt = Annotated[
     list[str] | None,
