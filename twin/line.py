@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import math
 
 import numpy as np
 import simpy
@@ -109,6 +108,3 @@ class Line:
     @property
     def now(self) -> float:
         return float(self.env.now)
-
-    def is_drained(self) -> bool:
-        return math.isfinite(self.end_at) and self.env.now >= self.end_at
