@@ -17,7 +17,6 @@ has set the policy's answer. Without it, decisions cost no extra event under t_c
 
 from __future__ import annotations
 
-from collections import Counter
 from typing import TYPE_CHECKING
 
 import simpy
@@ -54,7 +53,6 @@ class Gateway:
         self.expected: set[int] = set()  # t_any: robots the open epoch waits for
         self.pending: list[int] = []  # robots of the epoch the driver must answer
         self.epochs = 0
-        self.noops: Counter[int] = Counter()
 
     # -- called by robots --------------------------------------------------------------------
     def free(self, robot: Robot) -> simpy.Event | None:
