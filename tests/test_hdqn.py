@@ -384,3 +384,34 @@ def test_train_command_rejects_a_bad_option_in_one_line(option, value, tmp_path)
     assert f"{option}: '{value}'" in result.output
     assert "Traceback" not in result.output
     assert not any(tmp_path.iterdir())  # nothing trained, nothing written
+
+
+def test_training_seeds_on_ray_match_local_processes(tmp_path):
+    pytest.importorskip("ray")
+    from typer.testing import CliRunner
+
+    import twin.cli.learn_cmd  # noqa: F401
+    from twin.cli.app import app
+
+    base = ["train", "paper_baseline", "--steps", "200", "--eval-every", "200"]
+    base += ["--eval-seeds", "2", "--seeds", "2", "--workers", "2"]
+    base += ["--set", "robots.count=2", "--set", "feeder.rate=5"]
+    for name, extra in (("local", []), ("ray", ["--backend", "ray"])):
+        result = CliRunner().invoke(app, [*base, "--out", str(tmp_path / name), *extra])
+        assert result.exit_code == 0, result.output
+    for seed in (1, 2):
+        run = f"paper_baseline__async__{seed}"
+        local, ray = tmp_path / "local" / run, tmp_path / "ray" / run
+        assert (local / "model.safetensors").read_bytes() == (
+            ray / "model.safetensors"
+        ).read_bytes()
+        drop_timing = [
+            {k: v for k, v in r.items() if k != "steps_per_s"} for r in _rows(local / "log.csv")
+        ]
+        assert drop_timing == [
+            {k: v for k, v in r.items() if k != "steps_per_s"} for r in _rows(ray / "log.csv")
+        ]
+        assert len(drop_timing) >= 1
+    # different seeds train different networks
+    one, two = (tmp_path / "local" / f"paper_baseline__async__{s}" for s in (1, 2))
+    assert (one / "model.safetensors").read_bytes() != (two / "model.safetensors").read_bytes()

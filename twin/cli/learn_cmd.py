@@ -11,6 +11,8 @@ torch is imported only when a command runs, so the rest of the CLI works without
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
 from enum import StrEnum
@@ -26,6 +28,7 @@ from rich.table import Table
 
 from twin.cli.app import ScenarioArg, SetOpt, app, fail
 from twin.loader import load_scenario, parse_sets
+from twin.study.backends import BACKENDS, import_ray
 
 if TYPE_CHECKING:
     from policies.hdqn.train import TrainArgs
@@ -54,6 +57,26 @@ def _train_one(args: TrainArgs) -> str:
     from policies.hdqn.train import train
 
     return str(train(args))
+
+
+def _train_on_ray(
+    runs: list[TrainArgs], workers: int, address: str | None, done: Callable[[str], None]
+) -> None:
+    """The training runs as Ray tasks (one CPU each), on a cluster or a local Ray."""
+    ray = import_ray()
+    started_here = not ray.is_initialized()
+    if started_here:
+        address = address or os.environ.get("RAY_ADDRESS") or None
+        extra = {"num_cpus": workers} if address is None else {}
+        ray.init(address=address, include_dashboard=False, log_to_driver=False, **extra)
+    try:
+        refs = [ray.remote(_train_one).options(num_cpus=1).remote(r) for r in runs]
+        while refs:
+            ready, refs = ray.wait(refs, num_returns=1)
+            done(ray.get(ready[0]))
+    finally:
+        if started_here:
+            ray.shutdown()
 
 
 def _progress_columns() -> list[Any]:
@@ -91,6 +114,13 @@ def train_cmd(
     workers: Annotated[
         int, typer.Option("--workers", min=1, help="Parallel runs for --seeds.")
     ] = 1,
+    backend: Annotated[
+        str, typer.Option("--backend", help="Where --seeds runs go: local processes or ray.")
+    ] = "local",
+    address: Annotated[
+        str | None,
+        typer.Option("--address", help="Ray cluster address (default RAY_ADDRESS, else local)."),
+    ] = None,
     eval_every: Annotated[
         int, typer.Option("--eval-every", min=1, help="Steps between evaluations.")
     ] = 20_000,
@@ -113,6 +143,8 @@ def train_cmd(
     from policies.hdqn.train import REWARDS, VIEWS, TrainArgs
     from twin.envs.driver import check_rules
 
+    if backend not in BACKENDS:
+        fail(f"--backend: '{backend}' is not allowed; allowed {', '.join(BACKENDS)}")
     if network not in PRESETS:
         fail(f"--network: '{network}' is not a preset; allowed {', '.join(PRESETS)}")
     if view not in VIEWS:
@@ -154,11 +186,18 @@ def train_cmd(
         else:
             task = bar.add_task(f"train {mode.value} x{len(runs)}", total=len(runs), info="")
             folders = []
-            ctx = get_context("spawn")
-            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-                for fut in as_completed([pool.submit(_train_one, r) for r in runs]):
-                    folders.append(fut.result())
-                    bar.update(task, advance=1, info=Path(folders[-1]).name)
+
+            def done(folder: str) -> None:
+                folders.append(folder)
+                bar.update(task, advance=1, info=Path(folder).name)
+
+            if backend == "ray":
+                _train_on_ray(runs, workers, address, done)
+            else:
+                ctx = get_context("spawn")
+                with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+                    for fut in as_completed([pool.submit(_train_one, r) for r in runs]):
+                        done(fut.result())
     for f in sorted(folders):
         typer.echo(f)
 
