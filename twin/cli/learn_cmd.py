@@ -11,8 +11,6 @@ torch is imported only when a command runs, so the rest of the CLI works without
 from __future__ import annotations
 
 import math
-import os
-from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
 from enum import StrEnum
@@ -28,7 +26,7 @@ from rich.table import Table
 
 from twin.cli.app import ScenarioArg, SetOpt, app, fail
 from twin.loader import load_scenario, parse_sets
-from twin.study.backends import BACKENDS, import_ray
+from twin.study.backends import BACKENDS, ray_map
 
 if TYPE_CHECKING:
     from policies.hdqn.train import TrainArgs
@@ -57,26 +55,6 @@ def _train_one(args: TrainArgs) -> str:
     from policies.hdqn.train import train
 
     return str(train(args))
-
-
-def _train_on_ray(
-    runs: list[TrainArgs], workers: int, address: str | None, done: Callable[[str], None]
-) -> None:
-    """The training runs as Ray tasks (one CPU each), on a cluster or a local Ray."""
-    ray = import_ray()
-    started_here = not ray.is_initialized()
-    if started_here:
-        address = address or os.environ.get("RAY_ADDRESS") or None
-        extra = {"num_cpus": workers} if address is None else {}
-        ray.init(address=address, include_dashboard=False, log_to_driver=False, **extra)
-    try:
-        refs = [ray.remote(_train_one).options(num_cpus=1).remote(r) for r in runs]
-        while refs:
-            ready, refs = ray.wait(refs, num_returns=1)
-            done(ray.get(ready[0]))
-    finally:
-        if started_here:
-            ray.shutdown()
 
 
 def _progress_columns() -> list[Any]:
@@ -192,7 +170,7 @@ def train_cmd(
                 bar.update(task, advance=1, info=Path(folder).name)
 
             if backend == "ray":
-                _train_on_ray(runs, workers, address, done)
+                ray_map(_train_one, runs, done, workers, address)
             else:
                 ctx = get_context("spawn")
                 with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:

@@ -96,7 +96,20 @@ def import_ray() -> Any:
 
 
 def run_ray(specs: Sequence[RunSpec], on_row: OnRow, workers: int, address: str | None) -> None:
-    """Ray tasks on the cluster at ``address`` (or RAY_ADDRESS), else a local Ray."""
+    """The study's runs as Ray tasks."""
+    ray_map(execute, specs, on_row, workers, address, retries=2)
+
+
+def ray_map(
+    fn: Callable[[Any], Any],
+    items: Sequence[Any],
+    on_result: Callable[[Any], None],
+    workers: int,
+    address: str | None,
+    retries: int = 0,
+) -> None:
+    """``fn`` on each item as a Ray task (one CPU each), results to ``on_result`` as they
+    finish; on the cluster at ``address`` (or RAY_ADDRESS), else on a local Ray."""
     ray = import_ray()
     address = address or os.environ.get("RAY_ADDRESS") or None
     started_here = not ray.is_initialized()
@@ -114,13 +127,13 @@ def run_ray(specs: Sequence[RunSpec], on_row: OnRow, workers: int, address: str 
             first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
             raise StudyError(f"--address {address}: cannot connect to Ray: {first}") from None
     log.info("ray: %s", ray.cluster_resources())
-    task = ray.remote(execute).options(num_cpus=1, max_retries=2)
-    refs = [task.remote(spec) for spec in specs]
+    task = ray.remote(fn).options(num_cpus=1, max_retries=retries)
+    refs = [task.remote(item) for item in items]
     try:
         while refs:
             ready, refs = ray.wait(refs, num_returns=len(refs), timeout=0.2)
             for ref in ready:
-                on_row(ray.get(ref))
+                on_result(ray.get(ref))
     except BaseException:
         for ref in refs:
             ray.cancel(ref, force=True)
