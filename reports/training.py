@@ -20,6 +20,8 @@ MODE_TEXT = {
     "single": "one agent, joint action over all robots",
     "sync": "one agent per robot, shared parameters, synchronous (t_all)",
     "async": "hierarchical multi-agent, asynchronous (t_continue)",
+    "async (rollout)": "as async, each agent seeing the whole belt; Q fitted to team picks "
+    "over sampled futures (--targets rollout)",
 }
 
 

@@ -40,7 +40,9 @@ class TrainingRun:
 
     @property
     def mode(self) -> str:
-        return str(self.meta.get("mode") or "?")
+        """The training set-up; "async (rollout)" for a run fitted to rollout targets."""
+        mode = str(self.meta.get("mode") or "?")
+        return f"{mode} (rollout)" if self.meta.get("targets") == "rollout" else mode
 
     @property
     def label(self) -> str:

@@ -31,7 +31,7 @@ from twin.run import simulate  # noqa: E402
 TINY = {"robots.count": 2, "feeder.rate": 5.0}
 
 
-@pytest.mark.parametrize("preset", ["paper", "compact"])
+@pytest.mark.parametrize("preset", ["paper", "compact", "pooled"])
 @pytest.mark.parametrize(("shape", "extra", "actions"), [((1, 8, 14), 4, 5), ((2, 8, 64), 0, 36)])
 def test_network_output_shapes(preset, shape, extra, actions):
     net = build_network(preset, shape, actions, extra)
@@ -370,7 +370,8 @@ def test_bad_view_or_reward_is_a_one_line_user_error(tmp_path, kw, match):
 
 
 @pytest.mark.parametrize(
-    ("option", "value"), [("--view", "bogus"), ("--reward", "bogus"), ("--network", "huge")]
+    ("option", "value"),
+    [("--view", "bogus"), ("--reward", "bogus"), ("--network", "huge"), ("--targets", "mc")],
 )
 def test_train_command_rejects_a_bad_option_in_one_line(option, value, tmp_path):
     from typer.testing import CliRunner

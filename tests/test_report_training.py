@@ -244,3 +244,13 @@ def test_training_report_renders_offline(runs_dir: Path, tmp_path: Path) -> None
     assert seen["declared"] == seen["divs"] == seen["rendered"] == 4
     assert shot.stat().st_size > 50_000
     shutil.copyfile(shot, SCREENSHOT.with_name("report_screenshot_training.png"))
+
+
+def test_a_rollout_run_is_told_apart_from_the_td_async_run(tmp_path):
+    from reports.training_load import TrainingRun
+
+    rollout = TrainingRun(
+        tmp_path, {"mode": "async", "targets": "rollout", "train_args": {"seed": 1}}
+    )
+    assert rollout.mode == "async (rollout)" and rollout.label == "async (rollout) · seed 1"
+    assert TrainingRun(tmp_path, {"mode": "async", "train_args": {"seed": 1}}).mode == "async"

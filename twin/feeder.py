@@ -111,3 +111,26 @@ def read_trace(path: Path, width: float) -> tuple[np.ndarray, np.ndarray, list[s
         raise TraceError(f"feeder.trace: '{path}' has y outside the belt (0..{width} m)")
     kinds = [r.get("kind") or "" for r in rows] if "kind" in rows[0] else None
     return times, ys, kinds
+
+
+def splice(
+    now: tuple[np.ndarray, np.ndarray, list[str] | None],
+    then: tuple[np.ndarray, np.ndarray, list[str] | None],
+    at: float,
+) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
+    """The stream ``now`` up to time ``at`` (inclusive), then ``then`` after it.
+
+    A sampled future for rollouts: the parts already on the belt stay, the ones still to
+    come are drawn again from another seed's stream.
+    """
+    (t0, y0, k0), (t1, y1, k1) = now, then
+    keep0, keep1 = t0 <= at, t1 > at
+    kind = None
+    if k0 is not None and k1 is not None:
+        kind = [k for k, keep in zip(k0, keep0, strict=True) if keep]
+        kind += [k for k, keep in zip(k1, keep1, strict=True) if keep]
+    return (
+        np.concatenate([t0[keep0], t1[keep1]]),
+        np.concatenate([y0[keep0], y1[keep1]]),
+        kind,
+    )

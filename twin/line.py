@@ -10,7 +10,7 @@ import simpy
 from twin.belt import Belt
 from twin.bin import Bin
 from twin.decision import Policy, RobotSpec
-from twin.feeder import Feeder
+from twin.feeder import Feeder, splice
 from twin.gateway import Gateway
 from twin.records import Recorder
 from twin.robot import Robot
@@ -50,6 +50,8 @@ class Line:
 
     The seed is split into independent child streams (feeder arrivals, lateral positions,
     policy, one per robot for breakdowns), so the part stream does not depend on the policy.
+    ``future=(t0, seed2)`` keeps the parts fed up to ``t0`` and draws the later ones from
+    ``seed2``'s arrival streams: a sampled future for rollouts (the rest is unchanged).
     """
 
     def __init__(
@@ -59,6 +61,7 @@ class Line:
         seed: int | None = None,
         hold: bool = False,
         duration: float | None = None,
+        future: tuple[float, int] | None = None,
     ) -> None:
         self.scenario = scenario
         self.seed = scenario.seed if seed is None else seed
@@ -69,7 +72,13 @@ class Line:
         b = scenario.belt
         self.belt = Belt(b.length, b.width, b.speed, b.grid)
         feeder = Feeder(scenario.feeder, b.width, streams[0], streams[1], scenario.source_dir)
-        self.belt.load(*feeder.stream(self.duration))
+        parts = feeder.stream(self.duration)
+        if future is not None:  # a sampled future: parts fed after t0 come from another seed
+            t0, other = future
+            a, y = (np.random.default_rng(s) for s in np.random.SeedSequence(other).spawn(2))
+            then = Feeder(scenario.feeder, b.width, a, y, scenario.source_dir).stream(self.duration)
+            parts = splice(parts, then, t0)
+        self.belt.load(*parts)
         self.recorder = Recorder(len(self.belt))
         self.specs = robot_specs(scenario)
         self.policy = policy

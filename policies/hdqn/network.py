@@ -1,4 +1,5 @@
-"""Q-networks of the meta-controller: the paper's shape and a compact CPU default.
+"""Q-networks of the meta-controller: the paper's shape, a compact CPU default, and a small
+pooled convolutional one for rollout targets.
 
 A network maps a belt image ``(C, H, W)`` (uint8 occupancy, scaled to [0, 1] inside) and an
 optional vector of extra features (the deciding robot's one-hot under parameter sharing) to
@@ -25,6 +26,7 @@ class QNetwork(nn.Module):
         n_extra: int,
         convs: list[tuple[int, int, tuple[int, int]]],
         hidden: tuple[int, ...],
+        trunk: nn.Sequential | None = None,
     ) -> None:
         super().__init__()
         c, h, w = obs_shape
@@ -33,7 +35,7 @@ class QNetwork(nn.Module):
             layers += [nn.Conv2d(c, out, kernel, stride=stride, padding=kernel // 2), nn.ReLU()]
             c = out
         layers.append(nn.Flatten())
-        self.trunk = nn.Sequential(*layers)
+        self.trunk = trunk if trunk is not None else nn.Sequential(*layers)
         with torch.no_grad():
             flat = self.trunk(torch.zeros(1, *obs_shape)).shape[1]
         self.n_extra = n_extra
@@ -70,9 +72,29 @@ def compact(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -
     return QNetwork(obs_shape, n_actions, n_extra, [], (128, 128))
 
 
+def pooled(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -> QNetwork:
+    """Two small convolutions with pooling, FC 128: few weights, so it fits noisy regression
+    targets (the rollout-trained meta-controller) without memorising cell positions.
+
+    Conv 16 (3 x 5) and max-pool (2 x 4), conv 32 (3 x 3), average-pool to 2 x 8.
+    """
+    c = obs_shape[0]
+    trunk = nn.Sequential(
+        nn.Conv2d(c, 16, (3, 5), padding=(1, 2)),
+        nn.ReLU(),
+        nn.MaxPool2d((2, 4)),
+        nn.Conv2d(16, 32, 3, padding=1),
+        nn.ReLU(),
+        nn.AdaptiveAvgPool2d((2, 8)),
+        nn.Flatten(),
+    )
+    return QNetwork(obs_shape, n_actions, n_extra, [], (128,), trunk)
+
+
 PRESETS: dict[str, Callable[[tuple[int, int, int], int, int], QNetwork]] = {
     "paper": paper,
     "compact": compact,
+    "pooled": pooled,
 }
 """Network preset name -> builder ``(obs_shape, n_actions, n_extra) -> QNetwork``."""
 

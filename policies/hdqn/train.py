@@ -98,7 +98,7 @@ class TrainArgs:
     device: str = "auto"
     """auto (CUDA when available) | cpu | cuda | cuda:N."""
     network: str = "compact"
-    """Q-network preset: compact | paper."""
+    """Q-network preset: compact | paper | pooled."""
     rules: tuple[str, ...] = tuple(RULES)
     """Rules an action index refers to (the options): the paper's five plus SPT."""
     channels: int = 1

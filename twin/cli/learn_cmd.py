@@ -79,7 +79,9 @@ def train_cmd(
         int, typer.Option("--seed", min=0, help="Training seed (first of --seeds).")
     ] = 1,
     device: Annotated[str, typer.Option("--device", help="auto | cpu | cuda.")] = "auto",
-    network: Annotated[str, typer.Option("--network", help="compact | paper.")] = "compact",
+    network: Annotated[
+        str, typer.Option("--network", help="compact | paper | pooled.")
+    ] = "compact",
     rules: Annotated[
         str, typer.Option("--rules", help="Comma-separated rules the agent chooses among.")
     ] = "FIFO,LIFO,SIRO,SD,LD,SPT",
@@ -113,10 +115,42 @@ def train_cmd(
         str,
         typer.Option("--reward", help="Multi-agent reward: own (eq. 1 + 2) | downstream | team."),
     ] = "own",
+    targets: Annotated[
+        str,
+        typer.Option(
+            "--targets",
+            help="td (DQN on the reward) | rollout (fit to team picks over sampled futures).",
+        ),
+    ] = "td",
+    episodes: Annotated[
+        int, typer.Option("--episodes", min=1, help="Rollout targets: labelled episodes.")
+    ] = 600,
+    futures: Annotated[
+        int, typer.Option("--futures", min=1, help="Rollout targets: futures per decision.")
+    ] = 12,
     sets: SetOpt = None,
 ) -> None:
     """Train the HDQN meta-controller; writes OUT/<scenario>__<mode>__<seed>/."""
     _need_torch()
+    if targets not in ("td", "rollout"):
+        fail(f"--targets: '{targets}' is not allowed; allowed td, rollout")
+    if targets == "rollout":
+        _train_rollout(
+            scenario,
+            out,
+            mode,
+            seed,
+            seeds,
+            workers,
+            episodes,
+            futures,
+            rules,
+            device,
+            eval_seeds,
+            resume,
+            sets,
+        )
+        return
     from policies.hdqn.network import PRESETS
     from policies.hdqn.train import REWARDS, VIEWS, TrainArgs
     from twin.envs.driver import check_rules
@@ -178,6 +212,60 @@ def train_cmd(
                         done(fut.result())
     for f in sorted(folders):
         typer.echo(f)
+
+
+def _train_rollout(
+    scenario: str,
+    out: Path,
+    mode: Mode,
+    seed: int,
+    seeds: int,
+    workers: int,
+    episodes: int,
+    futures: int,
+    rules: str,
+    device: str,
+    eval_seeds: int,
+    resume: bool,
+    sets: list[str] | None,
+) -> None:
+    """``train --targets rollout``: one async run, labels from ``workers`` processes."""
+    from policies.hdqn.rollout import LabelSettings
+    from policies.hdqn.rollout_train import RolloutArgs, train_rollout
+
+    if mode is not Mode.async_:
+        fail("--targets rollout trains the async meta-controller; use --mode async")
+    if seeds != 1:
+        fail("--targets rollout trains one seed; --workers sets the labelling processes")
+    chosen = [r.strip().upper() for r in rules.split(",") if r.strip()]
+    if rules == "FIFO,LIFO,SIRO,SD,LD,SPT":  # the td default; SIRO cannot be labelled
+        chosen.remove("SIRO")
+    load_scenario(scenario, parse_sets(sets or []))  # fail early on a bad scenario
+    args = RolloutArgs(
+        scenario=scenario,
+        out=str(out),
+        seed=seed,
+        episodes=episodes,
+        round_episodes=min(100, episodes),
+        workers=workers,
+        settings=LabelSettings(rules=tuple(chosen), futures=futures),
+        device=device,
+        eval_seeds=eval_seeds,
+        resume=resume,
+        overrides=parse_sets(sets or []),
+    )
+    with Progress(*_progress_columns(), transient=False) as bar:
+        task = bar.add_task("train async (rollout targets)", total=episodes, info="")
+
+        def show(row: dict[str, Any]) -> None:
+            info = (
+                f"{row['step']} labels  G {row['gripping_rate']:.2f} %  "
+                f"vs {row['best_rule']} {row['diff_vs_best_rule']:+.2f}"
+            )
+            bar.update(task, completed=row["episodes"], info=info)
+
+        folder = train_rollout(args, show)
+    typer.echo(str(folder))
 
 
 @app.command("evaluate")
