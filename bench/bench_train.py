@@ -4,13 +4,16 @@ Usage::
 
     python bench/bench_train.py [--steps 4000] [--modes single,sync,async] [--device cpu]
     python bench/bench_train.py --modes '' --run runs/paper_baseline__async__1
+    python bench/bench_train.py --modes '' --rollout-episodes 10
 
 Part 1 trains each mode for ``--steps`` transitions (learning from step 500, one gradient
 step per 4 transitions, as the default run) and prints transitions per wall-clock second
 and per CPU second of this process (the steadier figure on a shared machine). Part 2 reads
 the ``eval.csv`` of a finished async run (``--run``) and prints the training wall time
 until its greedy policy first beat the best single rule on the validation seeds by a margin
-outside the paired 95 % confidence interval.
+outside the paired 95 % confidence interval (a ``--targets rollout`` run's too). Part 3
+labels ``--rollout-episodes`` episodes for rollout targets in this process and prints
+labelled decisions per second (``--workers W`` runs W such processes).
 """
 
 from __future__ import annotations
@@ -45,6 +48,18 @@ def train_rate(mode: str, steps: int, device: str, scenario: str) -> tuple[float
         return steps / (time.perf_counter() - t0), steps / (time.process_time() - c0)
 
 
+def rollout_rate(episodes: int, scenario: str) -> tuple[float, int]:
+    """(labelled decisions per wall second, labels) of ``episodes`` rollout episodes."""
+    from policies.hdqn.rollout import LabelSettings, label_episode
+    from twin.loader import load_scenario
+
+    line = load_scenario(scenario, {"termination": "t_continue", "warmup": 0.0})
+    t0, n = time.perf_counter(), 0
+    for e in range(episodes):
+        n += len(label_episode(line, 2_000_000 + e, LabelSettings()))
+    return n / (time.perf_counter() - t0), n
+
+
 def first_beat(run: Path) -> dict[str, str] | None:
     """The first evaluation row of a run that beat the best single rule, if any."""
     with (run / "eval.csv").open() as f:
@@ -61,11 +76,15 @@ def main() -> None:
     parser.add_argument("--modes", default="single,sync,async")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--run", type=Path, default=None, help="a finished async run folder")
+    parser.add_argument("--rollout-episodes", type=int, default=0)
     a = parser.parse_args()
     torch.set_num_threads(1)
     for mode in [m for m in a.modes.split(",") if m]:
         wall, cpu = train_rate(mode, a.steps, a.device, a.scenario)
         print(f"{mode:>6}: {wall:8.0f} steps/s wall, {cpu:8.0f} steps/s CPU ({a.device})")
+    if a.rollout_episodes:
+        rate, n = rollout_rate(a.rollout_episodes, a.scenario)
+        print(f"rollout targets: {rate:.1f} labelled decisions/s in one process ({n} labels)")
     if a.run is not None:
         row = first_beat(a.run)
         if row is None:

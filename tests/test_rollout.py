@@ -116,3 +116,26 @@ def test_rollout_training_resumes_from_its_labels(tmp_path):
         assert int(z["done"]) == 2
         assert np.array_equal(z["advantage"][: len(first)], first)
         assert len(z["advantage"]) > len(first)
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--mode", "sync"], "use --mode async"),
+        (["--seeds", "2"], "trains one seed"),
+        (["--rules", "FIFO,SIRO,SPT"], "SIRO chooses at random"),
+        (["--rules", "FIFO,LD"], "base: 'SPT' must be one of the rules"),
+        (["--network", "huge"], "--network: 'huge' is not a preset"),
+    ],
+)
+def test_train_with_rollout_targets_rejects_bad_options_in_one_line(extra, message, tmp_path):
+    from typer.testing import CliRunner
+
+    import twin.cli.learn_cmd  # noqa: F401
+    from twin.cli.app import app
+
+    args = ["train", "paper_baseline", "--targets", "rollout", "--out", str(tmp_path), *extra]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2
+    assert message in result.output and "Traceback" not in result.output
+    assert not any(tmp_path.iterdir())

@@ -31,6 +31,7 @@ import numpy as np
 
 from policies.rules import RULES
 from twin.decision import Decision, RobotSpec
+from twin.envs.driver import EnvError, check_rules
 from twin.envs.observation import BeltCamera
 from twin.line import Line
 from twin.scenario import Scenario
@@ -56,6 +57,14 @@ class LabelSettings:
     """Parts fed up to this long after the decision count, s."""
     channels: int = 2
     """Observation channels: parts, claimed parts."""
+
+    def check(self) -> None:
+        """Raise :class:`EnvError` (one line) for rules that cannot be labelled."""
+        rules = check_rules(list(self.rules))
+        if "SIRO" in rules:
+            raise EnvError("rules: SIRO chooses at random, so it cannot be labelled; leave it out")
+        if self.base not in rules:
+            raise EnvError(f"base: '{self.base}' must be one of the rules ({', '.join(rules)})")
 
 
 @dataclass

@@ -43,7 +43,7 @@ from policies.hdqn.train import (
     rule_baselines,
     run_name,
 )
-from twin.envs.driver import EnvError, check_rules
+from twin.envs.driver import EnvError
 from twin.loader import load_scenario, with_overrides
 from twin.output import atomic_path
 from twin.run import simulate
@@ -131,12 +131,8 @@ def train_rollout(
     args: RolloutArgs, progress: Callable[[dict[str, Any]], None] | None = None
 ) -> Path:
     """Run one rollout-trained run; returns its folder. ``progress`` gets a dict per round."""
-    s = args.settings
-    rules = check_rules(list(s.rules))
-    if "SIRO" in rules:
-        raise EnvError("rules: SIRO chooses at random, so it cannot be labelled; leave it out")
-    if s.base not in rules:
-        raise EnvError(f"base: '{s.base}' must be one of the rules ({', '.join(rules)})")
+    args.settings.check()
+    rules = list(args.settings.rules)
     base = load_scenario(args.scenario, args.overrides or None)
     scenario = with_overrides(base, {"termination": "t_continue", "warmup": 0.0})
     folder = Path(args.out) / run_name(base, "async", args.seed)
@@ -166,7 +162,7 @@ def train_rollout(
         while done < args.episodes:
             upto = min(args.episodes, done + args.round_episodes)
             seeds = [EPISODE_SEED_BASE + 10_000 * args.seed + i for i in range(done, upto)]
-            jobs = [(scenario, e, s) for e in seeds]
+            jobs = [(scenario, e, args.settings) for e in seeds]
             # map keeps the episode order, so the labels do not depend on the worker count
             parts.extend(pool.map(_label, jobs) if args.workers > 1 else map(_label, jobs))
             labels = Labels.concat(parts)

@@ -80,8 +80,9 @@ def train_cmd(
     ] = 1,
     device: Annotated[str, typer.Option("--device", help="auto | cpu | cuda.")] = "auto",
     network: Annotated[
-        str, typer.Option("--network", help="compact | paper | pooled.")
-    ] = "compact",
+        str | None,
+        typer.Option("--network", help="compact (td default) | paper | pooled (rollout default)."),
+    ] = None,
     rules: Annotated[
         str, typer.Option("--rules", help="Comma-separated rules the agent chooses among.")
     ] = "FIFO,LIFO,SIRO,SD,LD,SPT",
@@ -145,6 +146,7 @@ def train_cmd(
             episodes,
             futures,
             rules,
+            network or "pooled",
             device,
             eval_seeds,
             resume,
@@ -153,6 +155,8 @@ def train_cmd(
         return
     from policies.hdqn.network import PRESETS
     from policies.hdqn.train import REWARDS, VIEWS, TrainArgs
+
+    network = network or "compact"
     from twin.envs.driver import check_rules
 
     if backend not in BACKENDS:
@@ -224,6 +228,7 @@ def _train_rollout(
     episodes: int,
     futures: int,
     rules: str,
+    network: str,
     device: str,
     eval_seeds: int,
     resume: bool,
@@ -237,6 +242,10 @@ def _train_rollout(
         fail("--targets rollout trains the async meta-controller; use --mode async")
     if seeds != 1:
         fail("--targets rollout trains one seed; --workers sets the labelling processes")
+    from policies.hdqn.network import PRESETS
+
+    if network not in PRESETS:
+        fail(f"--network: '{network}' is not a preset; allowed {', '.join(PRESETS)}")
     chosen = [r.strip().upper() for r in rules.split(",") if r.strip()]
     if rules == "FIFO,LIFO,SIRO,SD,LD,SPT":  # the td default; SIRO cannot be labelled
         chosen.remove("SIRO")
@@ -249,11 +258,13 @@ def _train_rollout(
         round_episodes=min(100, episodes),
         workers=workers,
         settings=LabelSettings(rules=tuple(chosen), futures=futures),
+        network=network,
         device=device,
         eval_seeds=eval_seeds,
         resume=resume,
         overrides=parse_sets(sets or []),
     )
+    args.settings.check()  # a bad rule set fails before the progress bar
     with Progress(*_progress_columns(), transient=False) as bar:
         task = bar.add_task("train async (rollout targets)", total=episodes, info="")
 
