@@ -158,15 +158,20 @@ def learning_figure(run: TrainingRun) -> go.Figure:
             highs.append(ref)
     fig.update_yaxes(title="Reward / step", row=1, col=1)
     fig.update_yaxes(title="G (%)", ticksuffix=" %", row=2, col=1)
-    fig.update_xaxes(title="Training steps", row=2, col=1)
+    rollout = run.meta.get("targets") == "rollout"
+    fig.update_xaxes(title="Labelled decisions" if rollout else "Training steps", row=2, col=1)
     if lows:
         low, high = min(lows), max(highs)
         pad = max(0.5, 0.08 * (high - low))
         fig.update_yaxes(range=[max(0.0, low - pad), min(101.0, high + pad)], row=2, col=1)
     args = run.meta.get("train_args") or {}
+    every = args.get("eval_every")
+    if rollout:  # rollout targets: no reward curve, one validation per round of episodes
+        cadence = f"after every {args.get('round_episodes', '?')} labelled episodes"
+    else:
+        cadence = f"every {every:,} steps" if isinstance(every, int) else "periodically"
     subtitle = (
-        f"{run.label} · validation every {args.get('eval_every', '?'):,} steps on "
-        f"{args.get('eval_seeds', '?')} held-out seeds"
+        f"{run.label} · validation {cadence} on {args.get('eval_seeds', '?')} held-out seeds"
         if args
         else run.label
     )

@@ -139,3 +139,15 @@ def test_train_with_rollout_targets_rejects_bad_options_in_one_line(extra, messa
     assert result.exit_code == 2
     assert message in result.output and "Traceback" not in result.output
     assert not any(tmp_path.iterdir())
+
+
+def test_the_shipped_rollout_model_beats_spt_on_held_out_seeds():
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[1] / "models" / "paper_baseline__async_rollout"
+    line = load_scenario("paper_baseline")  # 600 s runs, seeds that training never saw
+    for seed in (0, 1):
+        hdqn = simulate(line, make_policy(f"hdqn:{folder}"), seed=seed).kpis
+        spt = simulate(line, make_policy("SPT"), seed=seed).kpis
+        assert hdqn["gripping_rate"] > spt["gripping_rate"]
+        assert hdqn["decisions"].get("FIFO", 0) > 0  # it does switch rules, not SPT throughout

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file, save
 
 from policies.hdqn.agent import AgentConfig, DQNAgent
 from twin.errors import UserError
@@ -62,7 +62,8 @@ def _atomic_json(path: Path, data: dict[str, Any]) -> None:
 
 def _atomic_tensors(path: Path, tensors: dict[str, torch.Tensor]) -> None:
     with atomic_path(path) as tmp:
-        save_file({k: v.detach().cpu().contiguous() for k, v in tensors.items()}, str(tmp))
+        # bytes written into the prepared file keep its usual permissions (save_file's are 0600)
+        tmp.write_bytes(save({k: v.detach().cpu().contiguous() for k, v in tensors.items()}))
 
 
 def save_checkpoint(
