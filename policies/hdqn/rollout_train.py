@@ -15,7 +15,7 @@ asynchronously (t_continue).
 
 Determinism: the labels depend only on the scenario, the episode seeds and the settings;
 the fit on the labels and the run's seed. The same seed gives the same checkpoint whatever
-the number of workers.
+the number of workers. An interrupted run loses at most the round it was labelling.
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ from policies.hdqn.train import (
     rule_baselines,
     run_name,
 )
+from policies.hdqn_policy import HDQNPolicy
 from twin.envs.driver import EnvError
 from twin.loader import load_scenario, with_overrides
 from twin.output import atomic_path
@@ -188,8 +189,6 @@ def train_rollout(
                 },
             }
             save_checkpoint(folder, agent, meta, train_state=False)
-            from policies.hdqn_policy import HDQNPolicy
-
             policy = HDQNPolicy(agent, meta)
             g = [simulate(val_scenario, policy, seed=v).kpis["gripping_rate"] for v in validation]
             diff = np.asarray(g) - np.asarray(baselines[best_rule])

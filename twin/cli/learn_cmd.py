@@ -155,9 +155,9 @@ def train_cmd(
         return
     from policies.hdqn.network import PRESETS
     from policies.hdqn.train import REWARDS, VIEWS, TrainArgs
+    from twin.envs.driver import check_rules
 
     network = network or "compact"
-    from twin.envs.driver import check_rules
 
     if backend not in BACKENDS:
         fail(f"--backend: '{backend}' is not allowed; allowed {', '.join(BACKENDS)}")
@@ -235,6 +235,7 @@ def _train_rollout(
     sets: list[str] | None,
 ) -> None:
     """``train --targets rollout``: one async run, labels from ``workers`` processes."""
+    from policies.hdqn.network import PRESETS
     from policies.hdqn.rollout import LabelSettings
     from policies.hdqn.rollout_train import RolloutArgs, train_rollout
 
@@ -242,8 +243,6 @@ def _train_rollout(
         fail("--targets rollout trains the async meta-controller; use --mode async")
     if seeds != 1:
         fail("--targets rollout trains one seed; --workers sets the labelling processes")
-    from policies.hdqn.network import PRESETS
-
     if network not in PRESETS:
         fail(f"--network: '{network}' is not a preset; allowed {', '.join(PRESETS)}")
     chosen = [r.strip().upper() for r in rules.split(",") if r.strip()]
