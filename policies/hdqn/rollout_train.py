@@ -37,19 +37,19 @@ from policies.hdqn.checkpoint import META, save_checkpoint
 from policies.hdqn.rollout import Labels, LabelSettings, label_episode
 from policies.hdqn.runlog import CsvLog
 from policies.hdqn.train import (
+    VALIDATION_COLUMNS,
     VALIDATION_SEED_BASE,
     eval_scenario,
     resolve_device,
     rule_baselines,
     run_name,
+    validate,
 )
 from policies.hdqn_policy import HDQNPolicy
 from twin.envs.driver import EnvError
 from twin.loader import load_scenario, with_overrides
 from twin.output import atomic_path
-from twin.run import simulate
 from twin.scenario import Scenario
-from twin.study.summary import t_interval
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +86,7 @@ class RolloutArgs:
 
 
 def _label(job: tuple[Scenario, int, LabelSettings]) -> Labels:
-    torch.set_num_threads(1)
+    """Worker entry point (labelling runs the twin only: no torch)."""
     return label_episode(*job)
 
 
@@ -152,10 +152,8 @@ def train_rollout(
     validation = [VALIDATION_SEED_BASE + i for i in range(args.eval_seeds)]
     val_scenario = eval_scenario(base, "async", args.eval_duration)
     baselines = rule_baselines(val_scenario, validation)
-    best_rule = max(baselines, key=lambda r: float(np.mean(baselines[r])))
     # "step" counts labelled decisions (the transitions of this training), as in train's eval.csv
-    columns = ["step", "episodes", "wall_time", "gripping_rate", "diff_vs_best_rule"]
-    columns += ["diff_ci", "best_rule", "best_rule_gripping_rate", "beats_best_rule"]
+    columns = ["step", "episodes", "wall_time", *VALIDATION_COLUMNS]
     eval_log = CsvLog(folder / "eval.csv", columns, append=args.resume)
     t0 = time.perf_counter()
     ctx = get_context("spawn")
@@ -189,24 +187,19 @@ def train_rollout(
                 },
             }
             save_checkpoint(folder, agent, meta, train_state=False)
-            policy = HDQNPolicy(agent, meta)
-            g = [simulate(val_scenario, policy, seed=v).kpis["gripping_rate"] for v in validation]
-            diff = np.asarray(g) - np.asarray(baselines[best_rule])
-            d_mean, d_low, _ = t_interval(list(diff), 0.95)
             row = {
                 "step": len(labels),
                 "episodes": done,
                 "wall_time": time.perf_counter() - t0,
-                "gripping_rate": float(np.mean(g)),
-                "diff_vs_best_rule": float(d_mean),
-                "diff_ci": float(d_mean - d_low),
-                "best_rule": best_rule,
-                "best_rule_gripping_rate": float(np.mean(baselines[best_rule])),
-                "beats_best_rule": int(d_low > 0.0),
+                **validate(HDQNPolicy(agent, meta), val_scenario, validation, baselines),
             }
             eval_log.row([row[c] for c in columns])
             log.info(
-                "%d episodes: G %.2f %% (%s %+.2f)", done, row["gripping_rate"], best_rule, d_mean
+                "%d episodes: G %.2f %% (%s %+.2f)",
+                done,
+                row["gripping_rate"],
+                row["best_rule"],
+                row["diff_vs_best_rule"],
             )
             if progress is not None:
                 progress(row)

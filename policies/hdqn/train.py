@@ -65,6 +65,7 @@ from policies.hdqn.credit import TeamCredit
 from policies.hdqn.replay import ReplayBuffer
 from policies.hdqn.runlog import CsvLog, truncate_log
 from policies.rules import RULES
+from twin.decision import Policy
 from twin.envs.driver import EnvError, EpochDriver, check_rules, intrinsic_reward
 from twin.loader import load_scenario, with_overrides
 from twin.run import simulate
@@ -186,6 +187,37 @@ def rule_baselines(scenario: Scenario, seeds: list[int]) -> dict[str, list[float
     }
 
 
+VALIDATION_COLUMNS = [
+    "gripping_rate",
+    "diff_vs_best_rule",
+    "diff_ci",
+    "best_rule",
+    "best_rule_gripping_rate",
+    "beats_best_rule",
+]
+"""The figures of one validation (:func:`validate`), the last columns of every eval.csv."""
+
+
+def validate(
+    policy: Policy, scenario: Scenario, seeds: list[int], baselines: dict[str, list[float]]
+) -> dict[str, Any]:
+    """The greedy ``policy`` on the validation ``seeds`` against the best single rule there
+    (``baselines`` from :func:`rule_baselines`; paired, the same seeds for both): the
+    :data:`VALIDATION_COLUMNS`. It beats the rule when the paired 95 % interval is above 0."""
+    best = max(baselines, key=lambda r: float(np.mean(baselines[r])))
+    g = [simulate(scenario, policy, seed=s).kpis["gripping_rate"] for s in seeds]
+    diff = np.asarray(g) - np.asarray(baselines[best])
+    d_mean, d_low, _ = t_interval(list(diff), 0.95)
+    return {
+        "gripping_rate": float(np.mean(g)),
+        "diff_vs_best_rule": d_mean,
+        "diff_ci": d_mean - d_low,
+        "best_rule": best,
+        "best_rule_gripping_rate": float(np.mean(baselines[best])),
+        "beats_best_rule": int(d_low > 0.0),
+    }
+
+
 def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = None) -> Path:
     """Run one training run; returns its folder. ``progress`` gets a dict every log row."""
     # -- the line, the folder ----------------------------------------------------------------
@@ -269,53 +301,27 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
 
     # -- evaluation ----------------------------------------------------------------------------
     baselines = rule_baselines(val_scenario, validation)
-    best_rule = max(baselines, key=lambda r: float(np.mean(baselines[r])))
     eval_log = CsvLog(
-        folder / "eval.csv",
-        [
-            "step",
-            "wall_time",
-            "gripping_rate",
-            "diff_vs_best_rule",
-            "diff_ci",
-            "best_rule",
-            "best_rule_gripping_rate",
-            "beats_best_rule",
-        ],
-        append=args.resume,
+        folder / "eval.csv", ["step", "wall_time", *VALIDATION_COLUMNS], append=args.resume
     )
 
     def evaluate_now() -> None:
         from policies.hdqn_policy import HDQNPolicy
 
         agent.q.eval()
-        policy = HDQNPolicy(agent, meta())
-        g = [simulate(val_scenario, policy, seed=s).kpis["gripping_rate"] for s in validation]
+        row = validate(HDQNPolicy(agent, meta()), val_scenario, validation, baselines)
         agent.q.train()
-        diff = np.asarray(g) - np.asarray(baselines[best_rule])
-        d_mean, d_low, _ = t_interval(list(diff), 0.95)  # paired: same seeds for both
-        half = d_mean - d_low if d_low == d_low else float("nan")
-        mean_g = float(np.mean(g))
-        beats = d_low > 0.0
         eval_log.row(
-            [
-                counters["step"],
-                counters["wall_time"],
-                mean_g,
-                float(diff.mean()),
-                half,
-                best_rule,
-                float(np.mean(baselines[best_rule])),
-                int(beats),
-            ]
+            [counters["step"], counters["wall_time"], *(row[c] for c in VALIDATION_COLUMNS)]
         )
+        mean_g = row["gripping_rate"]
         log.info(
             "step %d: eval G %.2f %% (best rule %s %+.2f +- %.2f)",
             counters["step"],
             mean_g,
-            best_rule,
-            diff.mean(),
-            half,
+            row["best_rule"],
+            row["diff_vs_best_rule"],
+            row["diff_ci"],
         )
         if mean_g > counters["best_eval"]:
             counters["best_eval"] = mean_g

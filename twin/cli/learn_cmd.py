@@ -133,8 +133,13 @@ def train_cmd(
 ) -> None:
     """Train the HDQN meta-controller; writes OUT/<scenario>__<mode>__<seed>/."""
     _need_torch()
+    from policies.hdqn.network import PRESETS
+
     if targets not in ("td", "rollout"):
         fail(f"--targets: '{targets}' is not allowed; allowed td, rollout")
+    network = network or ("pooled" if targets == "rollout" else "compact")
+    if network not in PRESETS:
+        fail(f"--network: '{network}' is not a preset; allowed {', '.join(PRESETS)}")
     if targets == "rollout":
         _train_rollout(
             scenario,
@@ -146,23 +151,18 @@ def train_cmd(
             episodes,
             futures,
             rules,
-            network or "pooled",
+            network,
             device,
             eval_seeds,
             resume,
             sets,
         )
         return
-    from policies.hdqn.network import PRESETS
     from policies.hdqn.train import REWARDS, VIEWS, TrainArgs
     from twin.envs.driver import check_rules
 
-    network = network or "compact"
-
     if backend not in BACKENDS:
         fail(f"--backend: '{backend}' is not allowed; allowed {', '.join(BACKENDS)}")
-    if network not in PRESETS:
-        fail(f"--network: '{network}' is not a preset; allowed {', '.join(PRESETS)}")
     if view not in VIEWS:
         fail(f"--view: '{view}' is not a view; allowed {', '.join(VIEWS)}")
     if reward not in REWARDS:
@@ -235,7 +235,6 @@ def _train_rollout(
     sets: list[str] | None,
 ) -> None:
     """``train --targets rollout``: one async run, labels from ``workers`` processes."""
-    from policies.hdqn.network import PRESETS
     from policies.hdqn.rollout import LabelSettings
     from policies.hdqn.rollout_train import RolloutArgs, train_rollout
 
@@ -243,8 +242,6 @@ def _train_rollout(
         fail("--targets rollout trains the async meta-controller; use --mode async")
     if seeds != 1:
         fail("--targets rollout trains one seed; --workers sets the labelling processes")
-    if network not in PRESETS:
-        fail(f"--network: '{network}' is not a preset; allowed {', '.join(PRESETS)}")
     chosen = [r.strip().upper() for r in rules.split(",") if r.strip()]
     if rules == "FIFO,LIFO,SIRO,SD,LD,SPT":  # the td default; SIRO cannot be labelled
         chosen.remove("SIRO")
