@@ -21,7 +21,7 @@ from collections.abc import Callable
 import gymnasium as gym
 import numpy as np
 
-from twin.envs import ENV_ID, PickPlaceAEC, PickPlaceEnv
+from pnp_twin.learning.envs import ENV_ID, PickPlaceAEC, PickPlaceEnv
 
 Rates = tuple[float, float, int]  # steps per wall second, per CPU second, episodes ended
 

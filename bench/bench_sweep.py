@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from pnp_twin.studies import Options, build_plan, run_sweep
+from pnp_twin.studies.plan import StudyPlan
 from twin import load_scenario
-from twin.study import Options, build_plan, run_sweep
-from twin.study.plan import StudyPlan
 
 
 def subset(plan: StudyPlan, points: int) -> StudyPlan:

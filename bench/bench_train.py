@@ -26,7 +26,7 @@ from pathlib import Path
 
 import torch
 
-from policies.hdqn.train import TrainArgs, train
+from pnp_twin.learning.train import TrainArgs, train
 
 
 def train_rate(mode: str, steps: int, device: str, scenario: str) -> tuple[float, float]:
@@ -50,7 +50,7 @@ def train_rate(mode: str, steps: int, device: str, scenario: str) -> tuple[float
 
 def rollout_rate(episodes: int, scenario: str) -> tuple[float, int]:
     """(labelled decisions per wall second, labels) of ``episodes`` rollout episodes."""
-    from policies.hdqn.rollout import LabelSettings, label_episode
+    from pnp_twin.learning.rollout import LabelSettings, label_episode
     from twin.loader import load_scenario
 
     line = load_scenario(scenario, {"termination": "t_continue", "warmup": 0.0})

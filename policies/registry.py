@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 
 from policies.base import RuleMix
@@ -11,8 +12,9 @@ from twin.errors import UserError
 
 Factory = Callable[[str], Policy]
 
-# Extra policy kinds by prefix, e.g. "hdqn:DIR"; filled by the modules that provide them.
-PREFIXED: dict[str, Factory] = {}
+# Extra policy kinds by prefix, e.g. "hdqn:DIR": "module:function" entries, imported only
+# when a spec names them (the learned policy needs torch, the ``learn`` extra).
+PREFIXED: dict[str, str] = {"hdqn": "policies.hdqn.policy:from_spec"}
 
 
 class PolicyError(UserError):
@@ -30,11 +32,10 @@ def make_policy(spec: str, n_robots: int | None = None) -> Policy:
     text = spec.strip()
     prefix, sep, arg = text.partition(":")
     if sep:
-        _load_plugins()
-        factory = PREFIXED.get(prefix.lower())
-        if factory is None:
+        entry = PREFIXED.get(prefix.lower())
+        if entry is None:
             raise PolicyError(f"policy: unknown kind '{prefix}'; allowed {allowed()}")
-        return factory(arg)
+        return _load(prefix.lower(), entry)(arg)
     rules = [r.strip().upper() for r in text.split(",")]
     for r in rules:
         if r not in RULES:
@@ -47,8 +48,14 @@ def make_policy(spec: str, n_robots: int | None = None) -> Policy:
     return RuleMix(rules)
 
 
-def _load_plugins() -> None:
-    try:  # the learned policy registers "hdqn"; it needs the learn extra
-        import policies.hdqn_policy  # noqa: F401
-    except ImportError:
-        pass
+def _load(prefix: str, entry: str) -> Factory:
+    """The factory a registry entry names, imported now; a missing extra is one line."""
+    module, _, attr = entry.partition(":")
+    try:
+        factory: Factory = getattr(importlib.import_module(module), attr)
+    except ImportError as e:
+        raise PolicyError(
+            f"policy: {prefix}: needs the learn extra ({e.name} is missing); "
+            "install it: pip install 'pnp-twin[learn]'"
+        ) from None
+    return factory

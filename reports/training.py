@@ -14,7 +14,7 @@ from reports.html import Page, Section, esc, table_html
 from reports.text import fmt_pct, fmt_seconds
 from reports.training_figures import ci_text, learning_figure, modes_figure, rules_figure
 from reports.training_load import TrainingRun
-from twin.study.summary import t_interval
+from twin.stats import t_interval
 
 MODE_TEXT = {
     "single": "one agent, joint action over all robots",

@@ -3,7 +3,7 @@
 Modules: ``network`` (Q-network presets), ``replay`` (ring buffer), ``agent`` (the DQN and
 its semi-MDP update), ``checkpoint`` (safetensors + JSON), ``train`` (a training run, top to
 bottom), ``evaluate`` (paired comparison with the rules). The trained policy used like any
-other is :class:`policies.hdqn_policy.HDQNPolicy` (``--policy hdqn:DIR``). Everything here
+other is :class:`policies.hdqn.policy.HDQNPolicy` (``--policy hdqn:DIR``). Everything here
 needs torch (the ``learn`` extra); import the submodules you need.
 """
 

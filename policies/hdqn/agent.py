@@ -21,7 +21,20 @@ import torch
 from torch import nn
 
 from policies.hdqn.network import QNetwork, build_network
-from policies.hdqn.replay import Batch
+
+
+@dataclass(frozen=True)
+class Batch:
+    """A sampled minibatch, numpy arrays with the batch first."""
+
+    obs: np.ndarray
+    extra: np.ndarray
+    action: np.ndarray
+    reward: np.ndarray
+    next_obs: np.ndarray
+    next_extra: np.ndarray
+    tau: np.ndarray
+    done: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -151,7 +164,7 @@ class DQNAgent:
 # -- action and input encodings shared by training and inference -----------------------------
 def decode_joint(action: int, n_robots: int, n_rules: int) -> list[int]:
     """Rule index per robot of a joint action; robot 0 is the most significant digit, as in
-    :class:`twin.envs.gym_env.PickPlaceEnv`."""
+    :class:`pnp_twin.learning.envs.gym_env.PickPlaceEnv`."""
     return [(action // n_rules ** (n_robots - 1 - i)) % n_rules for i in range(n_robots)]
 
 

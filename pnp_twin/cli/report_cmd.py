@@ -1,0 +1,45 @@
+"""The ``report`` command of ``pnp-twin``: (re)build the HTML report of a study folder.
+
+``pnp-twin report DIR`` reads the folder's tables (``docs/study_format.md``) and writes
+``DIR/report.html``; ``--out FILE`` writes it elsewhere. Nothing is simulated. A folder that
+is not a study, or an unwritable ``--out``, ends with a one-line error and exit code 2.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from pnp_twin.cli.app import app
+from twin.errors import UserError
+
+
+@app.command("report")
+def report(
+    study_dir: Annotated[
+        Path,
+        typer.Argument(
+            metavar="DIR",
+            help="A study folder (sweep, size, mix), a training run, or a folder of runs.",
+            show_default=False,
+        ),
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            "-o",
+            help="Write the report here (default DIR/report.html).",
+            show_default=False,
+        ),
+    ] = None,
+) -> None:
+    """Build the self-contained HTML report of a study or training folder (opens offline)."""
+    if out is not None and out.is_dir():
+        raise UserError(f"--out {out}: is a folder; give a file name such as {out}/report.html")
+    from reports import build_report  # the front end imports reports; the core never does
+
+    path = build_report(study_dir, out)
+    typer.echo(f"report: {path}", err=True)

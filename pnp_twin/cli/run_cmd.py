@@ -1,0 +1,314 @@
+"""The ``run``, ``validate``, ``schema`` and ``list`` commands of ``pnp-twin``.
+
+``run`` simulates one scenario with one policy and shows its KPIs (a table, or one JSON
+object with ``--json``); ``validate`` checks a scenario file and prints it resolved;
+``schema`` prints the scenario JSON Schema for editors; ``list`` shows the shipped
+scenarios. Tables and JSON go to stdout; progress and notes go to stderr.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+import yaml
+from rich import box
+from rich.console import Console
+from rich.table import Table
+
+from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from policies import make_policy
+from twin.feeder import read_trace
+from twin.loader import ScenarioError, load_scenario, parse_sets, shipped_scenarios
+from twin.output import (
+    check_table_path,
+    check_writable,
+    dumps_json,
+    dumps_toml,
+    write_table,
+    write_text,
+)
+from twin.run import RunResult, simulate
+from twin.scenario import Scenario
+
+
+class TextFormat(StrEnum):
+    """Formats ``validate`` prints a resolved scenario in."""
+
+    toml = "toml"
+    yaml = "yaml"
+
+
+def _stdout() -> Console:
+    console = Console(highlight=False)
+    if not console.is_terminal:  # piped to a file: no terminal width to respect
+        console.width = max(console.width, 120)
+    return console
+
+
+def _note(message: str) -> None:
+    """A line of information on stderr (never mixed into the tables or JSON on stdout)."""
+    typer.echo(message, err=True)
+
+
+def _load(scenario: str, sets: list[str] | None) -> Scenario:
+    return load_scenario(scenario, parse_sets(sets or []))
+
+
+@app.command("run")
+def run(
+    scenario: ScenarioArg,
+    policy: Annotated[
+        str | None,
+        typer.Option(
+            "--policy",
+            "-p",
+            metavar="NAME|MIX",
+            help="Rule (FIFO LIFO SIRO SD LD SPT), a per-robot mix such as SPT,SPT,SPT,FIFO, "
+            "or prefix:ARG; default the scenario's policy.",
+        ),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option("--seed", min=0, metavar="N", help="Master seed; default the scenario's."),
+    ] = None,
+    sets: SetOpt = None,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object of KPIs instead of tables.")
+    ] = False,
+    events: Annotated[
+        Path | None,
+        typer.Option(
+            "--events",
+            metavar="FILE",
+            help="Write the per-part records to FILE (.csv or .parquet).",
+        ),
+    ] = None,
+    spans: Annotated[
+        Path | None,
+        typer.Option(
+            "--spans",
+            metavar="FILE",
+            help="Write the robot state spans to FILE (.csv or .parquet).",
+        ),
+    ] = None,
+) -> None:
+    """Simulate SCENARIO with a policy and show its KPIs."""
+    if events is not None:
+        check_table_path(events, "--events")
+    if spans is not None:
+        check_table_path(spans, "--spans")
+    scn = _load(scenario, sets)
+    spec = policy if policy is not None else scn.policy
+    pol = make_policy(spec, scn.robots.count)
+    err = Console(stderr=True)
+    busy = err.status(f"simulating {scn.name}...") if err.is_terminal else contextlib.nullcontext()
+    with busy:
+        result = simulate(scn, pol, seed=seed)
+    if events is not None:
+        write_table(result.parts, events, "--events")
+        _note(f"wrote {len(result.parts)} part records to {events}")
+    if spans is not None:
+        write_table(result.spans, spans, "--spans")
+        _note(f"wrote {len(result.spans)} robot state spans to {spans}")
+    if as_json:
+        typer.echo(dumps_json(result.kpis))
+        return
+    out = _stdout()
+    out.print(kpi_table(result))
+    out.print(robot_table(result.kpis))
+    _note(
+        f"fed {scn.duration:g} s, drained to t = {result.sim_time:,.0f} s, "
+        f"in {result.wall_time:.2f} s wall time"
+    )
+
+
+def _pct(x: float) -> str:
+    return "n/a" if x is None or not math.isfinite(x) else f"{100.0 * x:.1f} %"
+
+
+def _share(x: float) -> str:
+    return "n/a" if x is None or not math.isfinite(x) else f"{100.0 * x:.1f}"
+
+
+def _num(x: float, fmt: str = ".3f", unit: str = "") -> str:
+    return "n/a" if x is None or not math.isfinite(x) else f"{x:{fmt}}{unit}"
+
+
+def kpi_table(result: RunResult) -> Table:
+    """The run's line-level KPIs as a two-column table."""
+    k = result.kpis
+    w0, w1 = k["window"]
+    capacity = sum(r["capacity"] for r in k["robots"])
+    bound = "part flow" if k["part_flow"] <= capacity else "robot capacity"
+    t = Table(
+        title=f"{k['scenario']}: policy {k['policy']}, seed {k['seed']}, {k['termination']}",
+        caption=f"parts fed in [{w0:g}, {w1:g}) s; efficiency = throughput / "
+        "min(part flow, robot capacity)",
+        box=box.SIMPLE_HEAVY,
+        show_header=False,
+    )
+    t.add_column("KPI", style="bold")
+    t.add_column("value", justify="right")
+    g = k["gripping_rate"]
+    t.add_row("Gripping rate G", "n/a" if not math.isfinite(g) else f"{g:.2f} %")
+    t.add_row(
+        "Parts presented / picked / missed",
+        f"{k['parts_presented']} / {k['parts_picked']} / {k['parts_missed']}",
+    )
+    t.add_row("Throughput", _num(k["throughput"], ".3f", " parts/s"))
+    t.add_row("Part flow", _num(k["part_flow"], ".3f", " parts/s"))
+    t.add_row("Robot capacity (sum)", _num(capacity, ".3f", " parts/s"))
+    t.add_row(f"Efficiency (of {bound})", _pct(k["efficiency"]))
+    t.add_row("Utilisation (mean)", _pct(k["utilisation"]))
+    t.add_row(
+        "Cycle time mean / p50 / p95 / max",
+        " / ".join(_num(k[f"cycle_time_{s}"], ".3f") for s in ("mean", "p50", "p95", "max")) + " s",
+    )
+    decisions = ", ".join(f"{rule} {n}" for rule, n in k["decisions"].items()) or "none"
+    t.add_row("Decisions per rule", decisions)
+    return t
+
+
+def robot_table(kpis: dict[str, Any]) -> Table:
+    """One row per robot: picks, throughput and where its time went."""
+    t = Table(
+        title="Robots (upstream first; time shares in %)",
+        box=box.SIMPLE_HEAVY,
+        pad_edge=False,
+        collapse_padding=True,
+        caption="missed = parts that left the robot's workspace unpicked",
+    )
+    for col in ("robot", "workspace m", "picks", "parts/s", "util", "NooP", "wait", "blocked"):
+        t.add_column(col, justify="right")
+    for col in ("down", "missed"):
+        t.add_column(col, justify="right")
+    for r in kpis["robots"]:
+        a, b = r["workspace"]
+        t.add_row(
+            str(r["robot"]),
+            f"{a:g}-{b:g}",
+            str(r["picks"]),
+            _num(r["throughput"], ".3f"),
+            _share(r["utilisation"]),
+            _share(r["noop"]),
+            _share(r["wait"]),
+            _share(r["blocked"]),
+            _share(r["down"]),
+            str(r["missed"]),
+        )
+    return t
+
+
+def resolved_mapping(scenario: Scenario) -> dict[str, Any]:
+    """The scenario with every default filled in, ready to be written as a scenario file.
+
+    The loader's ``source_dir`` is left out; a relative trace path is made absolute instead,
+    so the printed file works from any folder.
+    """
+    data = scenario.model_dump(mode="json", exclude={"source_dir"})
+    trace = scenario.feeder.trace
+    if trace and scenario.source_dir and not Path(trace).is_absolute():
+        data["feeder"]["trace"] = str(Path(scenario.source_dir) / trace)
+    data = _drop_none(data)
+    # run settings first, then the sections, as in the shipped files
+    return {k: v for k, v in data.items() if not isinstance(v, dict)} | {
+        k: v for k, v in data.items() if isinstance(v, dict)
+    }
+
+
+def _drop_none(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _drop_none(v) for k, v in obj.items() if v is not None}
+    if isinstance(obj, list):
+        return [_drop_none(v) for v in obj]
+    return obj
+
+
+def trace_path(scenario: Scenario) -> Path | None:
+    """The trace file a scenario replays, resolved against its folder; None if no trace."""
+    if scenario.feeder.arrival != "trace" or not scenario.feeder.trace:
+        return None
+    path = Path(scenario.feeder.trace)
+    if not path.is_absolute() and scenario.source_dir:
+        path = Path(scenario.source_dir) / path
+    return path
+
+
+@app.command("validate")
+def validate(
+    scenario: ScenarioArg,
+    sets: SetOpt = None,
+    fmt: Annotated[
+        TextFormat, typer.Option("--format", "-f", help="How to print the resolved scenario.")
+    ] = TextFormat.toml,
+) -> None:
+    """Check SCENARIO (fields, policy, trace file) and print it with every default resolved."""
+    scn = _load(scenario, sets)
+    make_policy(scn.policy, scn.robots.count)
+    notes = [f"{scn.robots.count} robots", f"policy {scn.policy}"]
+    trace = trace_path(scn)
+    if trace is not None:
+        times, _, _ = read_trace(trace, scn.belt.width)
+        span = float(times[-1]) if len(times) else 0.0
+        notes.append(f"trace of {len(times)} parts over {span:g} s")
+        if span < 0.95 * scn.duration:
+            notes.append(
+                f"the feed stops after the trace ends, before duration = {scn.duration:g} s"
+            )
+    data = resolved_mapping(scn)
+    if fmt is TextFormat.yaml:
+        text = yaml.safe_dump(data, sort_keys=False, default_flow_style=False, width=100)
+    else:
+        text = dumps_toml(data)
+    typer.echo(f"# {scn.name}: resolved by pnp-twin validate\n{text}", nl=False)
+    _note(f"ok: {scenario} is a valid scenario ({'; '.join(notes)})")
+
+
+def schema_text() -> str:
+    """The JSON Schema of a scenario file, as written to ``scenarios/scenario.schema.json``."""
+    schema = {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        **Scenario.model_json_schema(),
+    }
+    return json.dumps(schema, indent=2) + "\n"
+
+
+@app.command("schema")
+def schema(
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", metavar="FILE", help="Write the schema to FILE instead."),
+    ] = None,
+) -> None:
+    """Print the JSON Schema of scenario files (for editors and validators)."""
+    if out is not None:
+        check_writable(out, "--out")
+    text = schema_text()
+    if out is None:
+        typer.echo(text, nl=False)
+        return
+    write_text(text, out)
+    _note(f"wrote the scenario schema to {out}")
+
+
+@app.command("list")
+def list_scenarios() -> None:
+    """List the shipped scenarios, usable by name in place of a path."""
+    t = Table(title="Shipped scenarios", box=box.SIMPLE_HEAVY)
+    for col in ("name", "robots", "feed", "policy", "description"):
+        t.add_column(col)
+    for name in shipped_scenarios():
+        try:
+            s = load_scenario(name)
+        except ScenarioError as e:
+            t.add_row(name, "", "", "", f"[red]invalid: {e}[/red]")
+            continue
+        feed = "trace" if s.feeder.arrival == "trace" else f"{s.feeder.rate:g}/s {s.feeder.arrival}"
+        t.add_row(name, str(s.robots.count), feed, s.policy, s.description)
+    _stdout().print(t)

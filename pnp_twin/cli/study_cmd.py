@@ -1,0 +1,320 @@
+"""The ``sweep``, ``size`` and ``mix`` commands of ``pnp-twin``: studies into a folder.
+
+Each runs its study (``pnp_twin.studies``) with a progress bar on stderr (runs done, runs per
+second, time left), prints a short summary table on stdout, and writes the HTML report
+(``reports.build_report``) into the study folder. Re-running the same command resumes.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import shlex
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated, Any
+
+import pandas as pd
+import typer
+from rich import box
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    ProgressColumn,
+    Task,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from rich.table import Table
+from rich.text import Text
+
+from pnp_twin.cli.app import SetOpt, app
+from pnp_twin.studies import Options, build_plan, run_sweep
+from pnp_twin.studies.folder import Tables
+from pnp_twin.studies.rulemix import DEFAULT_BUDGET, run_mix
+from pnp_twin.studies.sizing import COUNT, MTBF, run_size
+from twin.errors import UserError
+from twin.loader import load_scenario, parse_sets
+from twin.scenario import Scenario
+
+log = logging.getLogger(__name__)
+
+
+class Backend(StrEnum):
+    """Where the runs execute."""
+
+    local = "local"
+    ray = "ray"
+
+
+ScenarioArg = Annotated[
+    str,
+    typer.Argument(
+        help="A scenario file with a [sweep] section, or a shipped name (see `pnp-twin list`).",
+        show_default=False,
+    ),
+]
+OutOpt = Annotated[
+    Path,
+    typer.Option(
+        "--out", "-o", help="Study folder (created; rerun to resume).", show_default=False
+    ),
+]
+WorkersOpt = Annotated[
+    int | None,
+    typer.Option("--workers", "-w", help="Parallel runs (1 = in-process). Default: CPU count."),
+]
+BackendOpt = Annotated[Backend, typer.Option("--backend", help="local process pool or ray.")]
+AddressOpt = Annotated[
+    str | None,
+    typer.Option("--address", help="Ray cluster address (default RAY_ADDRESS, else a local Ray)."),
+]
+RepsOpt = Annotated[
+    int | None, typer.Option("--replications", "-r", help="Replications (default sweep's).")
+]
+PolicyOpt = Annotated[
+    list[str] | None,
+    typer.Option("--policy", "-p", help="Policy to compare (repeatable; default sweep's)."),
+]
+FreshOpt = Annotated[
+    bool, typer.Option("--fresh", help="Discard the folder's earlier runs and start over.")
+]
+NoReportOpt = Annotated[bool, typer.Option("--no-report", help="Do not write report.html.")]
+
+
+class RateColumn(ProgressColumn):
+    """Runs per second of the runs executed in this invocation (resumed ones excluded)."""
+
+    def render(self, task: Task) -> Text:
+        rate = task.fields.get("rate")
+        return Text(f"{rate:.1f} runs/s" if rate else "- runs/s", style="progress.data.speed")
+
+
+@contextmanager
+def progress_bar(label: str) -> Iterator[Any]:
+    """A rich progress bar on stderr; yields the study's progress callback."""
+    console = Console(stderr=True)
+    bar = Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("runs"),
+        RateColumn(),
+        TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
+        console=console,
+        transient=False,
+    )
+    # runs executed now arrive one by one; resumed ones arrive as one jump and do not count
+    state = {"last": 0, "ran": 0, "t0": time.perf_counter()}
+    task = bar.add_task(label, total=None, rate=0.0)
+
+    def update(done: int, total: int) -> None:
+        if done - state["last"] == 1:
+            state["ran"] += 1
+        state["last"] = done
+        elapsed = time.perf_counter() - state["t0"]
+        rate = state["ran"] / elapsed if state["ran"] and elapsed > 0 else 0.0
+        bar.update(task, completed=done, total=max(total, done), rate=rate)
+
+    with bar:
+        yield update
+
+
+def _options(
+    workers: int | None,
+    backend: Backend,
+    address: str | None,
+    fresh: bool,
+    progress: Any,
+    confidence: float = 0.95,
+) -> Options:
+    w = workers if workers is not None else (os.cpu_count() or 1)
+    command = shlex.join(["pnp-twin", *sys.argv[1:]])
+    return Options(backend.value, w, address, fresh, progress, command, confidence)
+
+
+def _load(scenario: str, sets: list[str] | None) -> Scenario:
+    return load_scenario(scenario, parse_sets(sets or []))
+
+
+def _check_out(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: is a file; give a folder")
+    out.mkdir(parents=True, exist_ok=True)
+
+
+def _report(out: Path, skip: bool) -> None:
+    if skip:
+        return
+    err = Console(stderr=True, highlight=False)
+    try:
+        from reports import build_report
+    except ImportError as e:
+        err.print(f"note: report not written ({e})")
+        return
+    path = build_report(out)
+    err.print(f"report: {path}")
+
+
+def _g(mean: float, low: float, high: float) -> str:
+    if math.isnan(low):
+        return f"{mean:.2f}"
+    return f"{mean:.2f} [{low:.2f}, {high:.2f}]"
+
+
+def _sweep_table(tables: Tables, grid: list[str], limit: int = 30) -> Table:
+    t = Table(title="Best policy per grid point (gripping rate %, 95 % CI)", box=box.SIMPLE)
+    for c in grid:
+        t.add_column(c, justify="right")
+    t.add_column("best")
+    t.add_column("G %", justify="right")
+    t.add_column("runner-up (diff, pp)")
+    s, p = tables.summary, tables.paired
+    for _, b in tables.best.head(limit).iterrows():
+        row = s[(s["point"] == b["point"]) & (s["policy"] == b["policy"])].iloc[0]
+        others = p[(p["point"] == b["point"]) & (p["policy"] != b["policy"])]
+        second = ""
+        if len(others):
+            o = others.loc[others["diff_mean"].idxmax()]
+            second = f"{o['policy']} ({o['diff_mean']:+.2f})"
+        t.add_row(
+            *(str(b[c]) for c in grid),
+            str(b["policy"]),
+            _g(
+                row["gripping_rate_mean"], row["gripping_rate_ci_low"], row["gripping_rate_ci_high"]
+            ),
+            second,
+        )
+    if len(tables.best) > limit:
+        t.caption = f"first {limit} of {len(tables.best)} points; all in best.csv"
+    return t
+
+
+def _out_console() -> Console:
+    console = Console(highlight=False)
+    if not console.is_terminal:
+        console.width = max(console.width, 120)
+    return console
+
+
+@app.command("sweep")
+def sweep(
+    scenario: ScenarioArg,
+    out: OutOpt,
+    workers: WorkersOpt = None,
+    backend: BackendOpt = Backend.local,
+    address: AddressOpt = None,
+    replications: RepsOpt = None,
+    sets: SetOpt = None,
+    policy: PolicyOpt = None,
+    fresh: FreshOpt = False,
+    no_report: NoReportOpt = False,
+) -> None:
+    """Run a study: the sweep grid x policies x replications (common random numbers)."""
+    sc = _load(scenario, sets)
+    plan = build_plan(sc, policies=policy, replications=replications)
+    _check_out(out)
+    with progress_bar("sweep") as update:
+        tables = run_sweep(plan, out, _options(workers, backend, address, fresh, update))
+    _out_console().print(_sweep_table(tables, list(plan.grid)))
+    _report(out, no_report)
+
+
+@app.command("size")
+def size(
+    scenario: ScenarioArg,
+    out: OutOpt,
+    target: Annotated[
+        float | None, typer.Option("--target", help="Target gripping rate in % (or sweep.target).")
+    ] = None,
+    confidence: Annotated[float, typer.Option("--confidence", help="Confidence level.")] = 0.95,
+    workers: WorkersOpt = None,
+    backend: BackendOpt = Backend.local,
+    address: AddressOpt = None,
+    replications: RepsOpt = None,
+    sets: SetOpt = None,
+    policy: PolicyOpt = None,
+    fresh: FreshOpt = False,
+    no_report: NoReportOpt = False,
+) -> None:
+    """The smallest robot count reaching a target gripping rate with a confidence."""
+    sc = _load(scenario, sets)
+    _check_out(out)
+    opts = _options(workers, backend, address, fresh, None, confidence)
+    with progress_bar("size") as update:
+        opts.progress = update
+        tables, sizing = run_size(sc, out, target, opts, policy, replications)
+    rows = pd.DataFrame(sizing["rows"])
+    rows = rows[rows[MTBF] == 0] if MTBF in rows else rows
+    t = Table(
+        title=f"Gripping rate % by robot count ({100 * confidence:g} % CI, best policy)",
+        box=box.SIMPLE,
+    )
+    others = [c for c in rows.columns if "." in c and c not in (COUNT, MTBF)]
+    for c in [COUNT, *others]:
+        t.add_column(c, justify="right")
+    t.add_column("policy")
+    t.add_column("G %", justify="right")
+    t.add_column(f">= {sizing['target']:g} %")
+    for _, r in rows.iterrows():
+        t.add_row(
+            *(str(r[c]) for c in [COUNT, *others]),
+            str(r["policy"]),
+            _g(r["gripping_rate_mean"], r["ci_low"], r["ci_high"]),
+            "yes" if r["reached"] else "no",
+        )
+    console = _out_console()
+    console.print(t)
+    console.print(sizing["text"])
+    _report(out, no_report)
+
+
+@app.command("mix")
+def mix(
+    scenario: ScenarioArg,
+    out: OutOpt,
+    rules: Annotated[
+        str | None,
+        typer.Option("--rules", help="Rules to mix, comma-separated (default sweep.policies)."),
+    ] = None,
+    budget: Annotated[
+        int, typer.Option("--budget", help="Most mixes a GRASP search evaluates.")
+    ] = DEFAULT_BUDGET,
+    workers: WorkersOpt = None,
+    backend: BackendOpt = Backend.local,
+    address: AddressOpt = None,
+    replications: RepsOpt = None,
+    sets: SetOpt = None,
+    fresh: FreshOpt = False,
+    no_report: NoReportOpt = False,
+) -> None:
+    """Search the best per-robot mix of dispatching rules (exhaustive or GRASP)."""
+    sc = _load(scenario, sets)
+    _check_out(out)
+    names = [r for r in (rules or "").split(",") if r.strip()] or None
+    opts = _options(workers, backend, address, fresh, None)
+    with progress_bar("mix") as update:
+        opts.progress = update
+        _, result = run_mix(sc, out, opts, names, replications, budget)
+    t = Table(
+        title=f"Best rule mixes ({result['method']}, {result['evaluated']} evaluated; "
+        "gripping rate %, 95 % CI)",
+        box=box.SIMPLE,
+    )
+    t.add_column("#", justify="right")
+    t.add_column("mix")
+    t.add_column("G %", justify="right")
+    for i, r in enumerate(result["ranked"][:10], start=1):
+        t.add_row(str(i), r["mix"], _g(r["gripping_rate_mean"], r["ci_low"], r["ci_high"]))
+    _out_console().print(t)
+    _report(out, no_report)

@@ -1,0 +1,332 @@
+"""The epoch driver: the twin paused at each decision epoch, for reinforcement learning.
+
+:class:`EpochDriver` runs a :class:`~twin.line.Line` in hold mode with a
+:class:`~policies.base.SettableRules` policy. At each decision epoch the gateway pauses the
+simulation and lists the robots that are free; the driver hands their rule choices to the
+policy, releases them and advances to the next epoch. It also keeps the per-robot option
+bookkeeping (an *option* lasts from a robot's decision to its next one) from which the
+environments compute the paper's rewards, and draws the observations.
+
+The Gymnasium and PettingZoo environments in this package are thin layers over it; the HDQN
+trainer may use it directly.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from bisect import bisect_right
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from policies.base import SettableRules
+from policies.rules import PAPER_RULES, RULES
+from twin.camera import CHANNELS, BeltCamera
+from twin.decision import Decision
+from twin.errors import UserError
+from twin.gateway import SCHEMES
+from twin.line import Line
+from twin.loader import load_scenario, with_overrides
+from twin.scenario import Scenario
+
+log = logging.getLogger(__name__)
+
+NOOP = "NooP"
+
+
+class EnvError(UserError):
+    """A bad environment argument; the message is one line naming it and what is allowed."""
+
+
+@dataclass(frozen=True, slots=True)
+class OptionResult:
+    """A robot's option that just ended: from its decision at ``start`` to its next one.
+
+    ``picks`` is 1 if the robot gripped the part it chose (0 for a NooP, or a claim that a
+    t_any epoch interrupted); ``duration`` in simulated seconds includes any waiting for a
+    synchronous epoch and any breakdown before the robot was free again.
+    """
+
+    picks: int
+    duration: float
+    noop: bool
+    start: float
+
+
+def extrinsic_reward(option: OptionResult) -> float:
+    """The paper's eq. 1: picks per second of the option, 0 when it picked nothing."""
+    if option.picks and option.duration > 0.0:
+        return option.picks / option.duration
+    return 0.0
+
+
+def intrinsic_reward(option: OptionResult, noop_penalty: float = 0.01) -> float:
+    """The paper's eq. 2: ``-noop_penalty`` for a NooP, else 0."""
+    return -noop_penalty if option.noop else 0.0
+
+
+def resolve_scenario(
+    scenario: str | Path | Scenario,
+    overrides: Mapping[str, Any] | None = None,
+    termination: str | None = None,
+) -> Scenario:
+    """A Scenario from a path, a shipped name or an object, with overrides applied."""
+    if termination is not None and termination not in SCHEMES:
+        raise EnvError(
+            f"termination: {termination!r} is not a scheme; allowed {', '.join(SCHEMES)}"
+        )
+    extra = dict(overrides or {})
+    if termination is not None:
+        extra["termination"] = termination
+    if isinstance(scenario, Scenario):
+        return with_overrides(scenario, extra) if extra else scenario
+    return load_scenario(scenario, extra or None)
+
+
+def check_rules(rules: Sequence[str]) -> tuple[str, ...]:
+    """Upper-cased rule names, each one known to the rule registry."""
+    out = tuple(str(r).upper() for r in rules)
+    if not out:
+        raise EnvError(f"rules: empty; give at least one of {', '.join(RULES)}")
+    for r in out:
+        if r not in RULES:
+            raise EnvError(f"rules: '{r}' is not a rule; allowed {', '.join(RULES)}")
+    return out
+
+
+def is_rule_index(action: object, k: int) -> bool:
+    """True for an integer (or 0-d integer array) in 0..k-1; cheaper than Discrete.contains."""
+    if isinstance(action, int | np.integer):
+        return bool(0 <= action < k)
+    if isinstance(action, np.ndarray) and action.shape == () and action.dtype.kind in "iu":
+        return 0 <= int(action) < k
+    return False
+
+
+class _RecordingRules(SettableRules):
+    """SettableRules that remembers the part each robot chose (its option's claim)."""
+
+    def __init__(self, n_robots: int, claims: list[int]) -> None:
+        super().__init__(n_robots)
+        self.claims = claims
+
+    def choose(self, decision: Decision) -> int:
+        k = super().choose(decision)
+        self.claims[decision.robot] = decision.parts[k]
+        return k
+
+
+class EpochDriver:
+    """A line paused at every decision epoch; robots are 0-based indices, upstream first.
+
+    Args:
+        scenario: a Scenario, a path to a scenario file or a shipped scenario name.
+        seed: the default seed of :meth:`reset` (the scenario's when None).
+        termination: t_continue | t_all | t_any; the scenario's when None.
+        rules: the rule names an action index refers to (default the paper's five:
+            FIFO LIFO SIRO SD LD).
+        channels: observation channels (1 to 3), see :class:`~twin.camera.BeltCamera`.
+        overrides: dotted-path scenario overrides, e.g. ``{"feeder.rate": 12}``.
+
+    The episode is the scenario's feeding time: :attr:`done` turns true at the first epoch
+    at or after ``scenario.duration`` (no part is fed after it).
+
+    Use: ``deciding = d.reset(seed)``; then repeatedly ``deciding = d.act({robot: k})`` with
+    a rule index ``k`` for each robot in ``deciding``. After each call, for every robot in
+    ``deciding``, ``d.option(robot)`` is the option that just ended (None at the first
+    epoch) and ``d.reward(robot, weights, noop_penalty)`` its eq. 1 + eq. 2 reward.
+    ``d.observe(None)`` is the whole belt, ``(C, H, W)`` = (C, 8, 64) on paper_baseline;
+    ``d.observe(robot)`` the robot's workspace window, ``(C, H, w)``, a fixed width ``w``
+    (the widest workspace in cells; 14 on paper_baseline) from the cell holding its
+    workspace start. Channels: 0 parts, 1 claimed parts, 2 busy robots' workspace columns
+    (see :mod:`twin.camera`).
+    """
+
+    def __init__(
+        self,
+        scenario: str | Path | Scenario = "paper_baseline",
+        seed: int | None = None,
+        termination: str | None = None,
+        rules: Sequence[str] = PAPER_RULES,
+        channels: int = 1,
+        overrides: Mapping[str, Any] | None = None,
+    ) -> None:
+        self.scenario = resolve_scenario(scenario, overrides, termination)
+        self.rules = check_rules(rules)
+        self.seed = self.scenario.seed if seed is None else seed
+        self.n_robots = self.scenario.robots.count
+        if not 1 <= channels <= len(CHANNELS):
+            raise EnvError(
+                f"channels: {channels} is not allowed; give 1 to {len(CHANNELS)} "
+                f"({', '.join(CHANNELS)})"
+            )
+        self.camera = BeltCamera(self.scenario, channels)
+        self.channels = channels
+        self.line: Line | None = None
+        self.deciding: list[int] = []
+        self.steps = 0
+        n = self.n_robots
+        self._claims = [-1] * n
+        self._started = [math.nan] * n
+        self._noops_before = [0] * n
+        self._options: list[OptionResult | None] = [None] * n
+        self._step_picks = [0] * n
+        self._total_picks = [0] * n
+        self._passed = 0
+        self._passed_picked = 0
+
+    # -- running -------------------------------------------------------------------------------
+    def reset(self, seed: int | None = None) -> list[int]:
+        """Start a fresh line (seed: the driver's default when None); the robots deciding."""
+        if seed is not None:
+            self.seed = int(seed)
+        n = self.n_robots
+        self._claims[:] = [-1] * n
+        self._started[:] = [math.nan] * n
+        self._noops_before[:] = [0] * n
+        self._options[:] = [None] * n
+        self._step_picks[:] = [0] * n
+        self._total_picks[:] = [0] * n
+        self._passed = self._passed_picked = 0
+        self.steps = 0
+        self.policy = _RecordingRules(n, self._claims)
+        self.line = Line(self.scenario, self.policy, seed=self.seed, hold=True)
+        self.camera.attach(self.line)
+        log.debug(
+            "episode of %s, seed %d, %s", self.scenario.name, self.seed, self.scenario.termination
+        )
+        self._advance()
+        return self.deciding
+
+    def act(self, actions: Mapping[int, int]) -> list[int]:
+        """Apply a rule index to each deciding robot, run to the next epoch; the robots then.
+
+        Robots missing from ``actions`` keep their previous rule (FIFO at first); indices
+        for robots that are not deciding are ignored.
+        """
+        line = self.line
+        if line is None:
+            raise RuntimeError("EpochDriver.act() called before reset()")
+        rules, policy, now = self.rules, self.policy, line.env.now
+        decisions = line.recorder.decisions
+        for robot in self.deciding:
+            k = actions.get(robot)
+            if k is not None:
+                if not 0 <= k < len(rules):
+                    raise EnvError(
+                        f"action: rule index {k} for robot {robot} is not in 0..{len(rules) - 1}"
+                    )
+                policy.rules[robot] = rules[k]
+            self._claims[robot] = -1
+            self._started[robot] = now
+            self._noops_before[robot] = decisions[(robot, NOOP)]
+            self._options[robot] = None
+        line.gateway.release()
+        self.steps += 1
+        self._advance()
+        return self.deciding
+
+    def _advance(self) -> None:
+        """Step the simulation to the next epoch and close the options that ended there."""
+        line = self.line
+        assert line is not None
+        env, gateway = line.env, line.gateway
+        pending = gateway.pending
+        step, peek = env.step, env.peek
+        while not pending:
+            if peek() == math.inf:  # pragma: no cover - robots always come back in hold mode
+                raise RuntimeError("the line ran out of events")
+            step()
+        now = env.now
+        while peek() == now:  # robots free at the same instant share the epoch
+            step()
+        self.deciding = sorted(pending)
+        self._collect(now)
+
+    def _collect(self, now: float) -> None:
+        assert self.line is not None
+        rec = self.line.recorder
+        picked_at, picker = rec.picked_at, rec.robot
+        step_picks, claims = self._step_picks, self._claims
+        for r in range(self.n_robots):
+            step_picks[r] = 0
+            part = claims[r]
+            if part >= 0 and picker[part] == r and picked_at[part] == picked_at[part]:
+                step_picks[r] = 1
+                self._total_picks[r] += 1
+                claims[r] = -2  # this option picked its part
+        decisions = rec.decisions
+        for r in self.deciding:
+            start = self._started[r]
+            if start != start:  # the first epoch: no option ended
+                continue
+            self._options[r] = OptionResult(
+                picks=1 if claims[r] == -2 else 0,
+                duration=now - start,
+                noop=decisions[(r, NOOP)] > self._noops_before[r],
+                start=start,
+            )
+
+    # -- state --------------------------------------------------------------------------------
+    @property
+    def now(self) -> float:
+        """Simulated time of the current epoch, s."""
+        return 0.0 if self.line is None else float(self.line.env.now)
+
+    @property
+    def done(self) -> bool:
+        """True once the feeding time is over (the episode terminates)."""
+        return self.line is not None and self.line.env.now >= self.scenario.duration
+
+    def option(self, robot: int) -> OptionResult | None:
+        """The option that ended when ``robot`` became free for the current epoch, if any."""
+        return self._options[robot]
+
+    @property
+    def step_picks(self) -> list[int]:
+        """Picks (grips completed) per robot during the last :meth:`act`."""
+        return list(self._step_picks)
+
+    @property
+    def total_picks(self) -> list[int]:
+        """Picks per robot since :meth:`reset`."""
+        return list(self._total_picks)
+
+    def gripping_rate(self) -> float:
+        """Percent of the parts that passed the last workspace's end so far that were picked."""
+        line = self.line
+        if line is None:
+            return 0.0
+        belt = line.belt
+        n = bisect_right(belt.fed, line.env.now - line.last_end / belt.speed)
+        holder = belt.holder
+        picked = self._passed_picked
+        for i in range(self._passed, n):
+            if holder[i] >= 0:
+                picked += 1
+        self._passed, self._passed_picked = n, picked
+        return 100.0 * picked / n if n else 0.0
+
+    def observe(self, robot: int | None = None) -> np.ndarray:
+        """The belt image (C, H, W) when ``robot`` is None, else the robot's window (C, H, w)."""
+        if robot is None:
+            return self.camera.belt()
+        return self.camera.window(robot)
+
+    def reward(
+        self,
+        robot: int,
+        weights: tuple[float, float] = (1.0, 1.0),
+        noop_penalty: float = 0.01,
+    ) -> float:
+        """Weighted eq. 1 + eq. 2 of the option that just ended for ``robot`` (0 if none)."""
+        option = self._options[robot]
+        if option is None:
+            return 0.0
+        return weights[0] * extrinsic_reward(option) + weights[1] * intrinsic_reward(
+            option, noop_penalty
+        )

@@ -1,0 +1,210 @@
+"""Evaluating a trained HDQN against every rule and the best rule mix, paired by seed.
+
+Every policy runs on the same held-out seeds (common random numbers: the same part stream
+for every policy), so each comparison is a paired one: the confidence interval is the
+t-interval of the per-seed differences ``G_hdqn - G_policy``. Evaluation seeds default to
+0..n-1, disjoint from training (>= 1,000,000) and validation (500,000 + i) seeds.
+
+The best static rule mix is either given (a mix such as ``SPT,SPT,SPT,FIFO``, e.g. the
+``best`` of a ``pnp-twin mix`` study) or searched here by coordinate ascent from the best
+single rule on separate tuning seeds (600,000 + i), so that choosing the mix does not use
+the evaluation seeds.
+
+:func:`write_evaluation` saves a comparison into a run folder for the training report:
+``evaluation.csv`` (one row per policy and seed) and ``rules.csv`` (how often the HDQN
+chose each rule per robot on the first evaluation seed, the paper's figure 13).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from policies.registry import make_policy
+from policies.rules import RULES
+from twin.decision import Policy
+from twin.loader import with_overrides
+from twin.output import write_table
+from twin.run import simulate
+from twin.scenario import Scenario
+from twin.stats import t_interval
+
+log = logging.getLogger(__name__)
+
+TUNING_SEED_BASE = 600_000
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """The result of :func:`compare`: a table (one row per policy) and the per-seed runs."""
+
+    table: pd.DataFrame
+    runs: pd.DataFrame
+    mix: str
+    seeds: list[int]
+    reference: str
+    scenario: Scenario | None = None
+
+
+def gripping_rates(
+    scenario: Scenario, make: Callable[[], Policy], seeds: Sequence[int]
+) -> list[float]:
+    """Gripping rate of a fresh policy per seed."""
+    return [simulate(scenario, make(), seed=s).kpis["gripping_rate"] for s in seeds]
+
+
+def search_mix(
+    scenario: Scenario, seeds: Sequence[int], rules: Sequence[str] = tuple(RULES), sweeps: int = 2
+) -> str:
+    """The best per-robot mix found by coordinate ascent from the best uniform rule."""
+    n = scenario.robots.count
+    cache: dict[tuple[str, ...], float] = {}
+
+    def score(mix: tuple[str, ...]) -> float:
+        if mix not in cache:
+            cache[mix] = float(
+                np.mean(gripping_rates(scenario, lambda: make_policy(",".join(mix)), seeds))
+            )
+        return cache[mix]
+
+    best = max(((r,) * n for r in rules), key=score)
+    for _ in range(sweeps):
+        improved = False
+        for i in range(n):
+            for r in rules:
+                mix = best[:i] + (r,) + best[i + 1 :]
+                if score(mix) > score(best):
+                    best, improved = mix, True
+        if not improved:
+            break
+    log.info("mix search: %s (%.2f %%) after %d mixes", ",".join(best), score(best), len(cache))
+    return ",".join(best)
+
+
+def compare(
+    scenario: Scenario,
+    hdqn: str | Path,
+    seeds: int = 20,
+    first_seed: int = 0,
+    mix: str | None = None,
+    duration: float | None = None,
+    termination: str | None = None,
+    tuning_seeds: int = 3,
+    confidence: float = 0.95,
+) -> Comparison:
+    """Compare the HDQN in folder ``hdqn`` with every rule and the best mix on ``seeds`` seeds.
+
+    ``duration`` and ``termination`` override the scenario's for every policy alike.
+    """
+    from policies.hdqn.policy import HDQNPolicy
+
+    changes: dict[str, object] = {}
+    if duration is not None:
+        changes.update(duration=duration, warmup=min(scenario.warmup, duration / 5.0))
+    if termination is not None:
+        changes["termination"] = termination
+    line = with_overrides(scenario, changes) if changes else scenario
+    seed_list = list(range(first_seed, first_seed + seeds))
+    if mix is None:
+        tuning = [TUNING_SEED_BASE + i for i in range(tuning_seeds)]
+        mix = search_mix(line, tuning)
+    trained = HDQNPolicy.load(hdqn)
+    reference = f"HDQN ({trained.mode})"
+    makers: dict[str, Callable[[], Policy]] = {reference: lambda: HDQNPolicy.load(hdqn)}
+    for r in [*RULES, mix]:
+        makers[r if r in RULES else f"mix {r}"] = partial(make_policy, r)
+    g = {name: gripping_rates(line, make, seed_list) for name, make in makers.items()}
+    ref = np.asarray(g[reference])
+    rows = []
+    for name, values in g.items():
+        mean, low, high = t_interval(values, confidence)
+        d_mean, d_low, d_high = t_interval(list(ref - np.asarray(values)), confidence)
+        rows.append(
+            {
+                "policy": name,
+                "gripping_rate": mean,
+                "ci_low": low,
+                "ci_high": high,
+                "diff": d_mean if name != reference else float("nan"),
+                "diff_ci_low": d_low if name != reference else float("nan"),
+                "diff_ci_high": d_high if name != reference else float("nan"),
+            }
+        )
+    table = pd.DataFrame(rows)
+    runs = pd.DataFrame(
+        [
+            (name, s, v)
+            for name, values in g.items()
+            for s, v in zip(seed_list, values, strict=True)
+        ],
+        columns=["policy", "seed", "gripping_rate"],
+    )
+    return Comparison(table, runs, mix, seed_list, reference, line)
+
+
+def verdict(comparison: Comparison) -> dict[str, bool]:
+    """Per policy: does the HDQN beat it with the paired CI entirely above zero?"""
+    t = comparison.table
+    return {
+        row.policy: bool(row.diff_ci_low > 0)
+        for row in t.itertuples()
+        if row.policy != comparison.reference
+    }
+
+
+def policy_kind(name: str, reference: str) -> str:
+    """'hdqn', 'rule' or 'mix' for a policy name of a comparison."""
+    if name == reference:
+        return "hdqn"
+    return "rule" if name in RULES else "mix"
+
+
+def rule_counts(scenario: Scenario, hdqn: str | Path, seed: int) -> pd.DataFrame:
+    """How often the HDQN chose each rule per robot in one run: robot, rule, count
+    (``NooP`` counts the decisions with no candidate, where no rule was asked)."""
+    from policies.hdqn.policy import HDQNPolicy
+
+    decisions = simulate(scenario, HDQNPolicy.load(hdqn), seed=seed).decisions
+    counts = decisions[["robot", "rule", "count"]].copy()
+    counts["robot"] = counts["robot"].astype(int) + 1  # robot 1 first, as the report names them
+    return counts.sort_values(["robot", "rule"]).reset_index(drop=True)
+
+
+def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) -> list[Path]:
+    """Write ``evaluation.csv`` and ``rules.csv`` of ``comparison`` into folder ``out``.
+
+    ``evaluation.csv``: scenario, mode, termination, duration, policy, kind (hdqn, rule,
+    mix), seed, gripping_rate; one row per policy and seed. ``rules.csv``: robot (from 1),
+    rule, count of the HDQN on the first evaluation seed. Returns the paths written.
+    """
+    from policies.hdqn.checkpoint import read_meta
+
+    line = comparison.scenario
+    if line is None:
+        raise ValueError("write_evaluation needs a comparison made by compare()")
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    runs = comparison.runs
+    table = pd.DataFrame(
+        {
+            "scenario": line.name,
+            "mode": read_meta(hdqn).get("mode", ""),
+            "termination": line.termination,
+            "duration": line.duration,
+            "policy": runs["policy"],
+            "kind": [policy_kind(p, comparison.reference) for p in runs["policy"]],
+            "seed": runs["seed"],
+            "gripping_rate": runs["gripping_rate"],
+        }
+    )
+    paths = [folder / "evaluation.csv", folder / "rules.csv"]
+    write_table(table, paths[0])
+    write_table(rule_counts(line, hdqn, comparison.seeds[0]), paths[1])
+    log.info("evaluation written to %s", folder)
+    return paths

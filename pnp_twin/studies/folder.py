@@ -1,0 +1,139 @@
+"""Writing a study folder (see ``docs/study_format.md``): tables, records, metadata.
+
+Every file is written atomically. The tables are rebuilt from the journal's rows, so a
+resumed study ends with exactly the tables an uninterrupted one writes.
+"""
+
+from __future__ import annotations
+
+import platform
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from pnp_twin.studies.execute import ID_COLUMNS, simulate_spec
+from pnp_twin.studies.journal import write_frame, write_json
+from pnp_twin.studies.plan import RunSpec, StudyPlan
+from pnp_twin.studies.summary import best_policies, paired_differences, summarise
+
+PACKAGES = {
+    "pnp_twin": "pnp-twin",
+    "simpy": "simpy",
+    "numpy": "numpy",
+    "pandas": "pandas",
+    "plotly": "plotly",
+}
+
+
+@dataclass
+class Tables:
+    """The tables of a study folder."""
+
+    results: pd.DataFrame
+    summary: pd.DataFrame
+    paired: pd.DataFrame
+    best: pd.DataFrame
+
+
+def now_iso() -> str:
+    """The current UTC time, ISO 8601."""
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def versions() -> dict[str, str]:
+    """Versions of Python and the packages a result depends on."""
+    out = {"python": platform.python_version()}
+    for key, dist in PACKAGES.items():
+        try:
+            out[key] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[key] = "unknown"
+    return out
+
+
+def results_frame(rows: Sequence[dict[str, Any]], grid: Sequence[str]) -> pd.DataFrame:
+    """One row per run, sorted by point, policy, replication; ids first, wall_time last."""
+    ordered = sorted(rows, key=lambda r: (r["point"], r["policy"], r["replication"]))
+    df = pd.DataFrame(ordered)
+    if df.empty:
+        return df
+    rules = [c for c in df.columns if c.startswith("rule_")]
+    df[rules] = df[rules].fillna(0).astype("int64")
+    first = ["run_id", "point", *grid, "policy", "replication", "seed"]
+    rest = [c for c in df.columns if c not in first and c != "wall_time"]
+    return df[first + rest + ["wall_time"]].reset_index(drop=True)
+
+
+def build_tables(
+    rows: Sequence[dict[str, Any]], grid: Sequence[str], confidence: float = 0.95
+) -> Tables:
+    """Results, summary, paired differences and best policy per point."""
+    results = results_frame(rows, grid)
+    summary = summarise(results, grid, confidence)
+    best = best_policies(summary, grid)
+    paired = paired_differences(results, best, grid, confidence)
+    return Tables(results, summary, paired, best)
+
+
+def write_tables(folder: Path, tables: Tables) -> None:
+    """results.parquet/.csv, summary.csv, paired.csv, best.csv."""
+    write_frame(folder / "results.parquet", tables.results)
+    write_frame(folder / "results.csv", tables.results)
+    write_frame(folder / "summary.csv", tables.summary)
+    write_frame(folder / "paired.csv", tables.paired)
+    write_frame(folder / "best.csv", tables.best)
+
+
+def write_records(folder: Path, spec: RunSpec) -> None:
+    """Re-simulate one representative run (deterministic) and keep its record tables."""
+    result = simulate_spec(spec)
+    write_frame(folder / "records" / "parts.parquet", result.parts)
+    write_frame(folder / "records" / "spans.parquet", result.spans)
+    write_json(
+        folder / "records" / "run.json",
+        {
+            "run_id": spec.run_id,
+            "point": spec.point,
+            "values": spec.values,
+            "policy": spec.policy,
+            "replication": spec.replication,
+            "seed": spec.seed,
+            "scenario": spec.scenario.model_dump(mode="json"),
+        },
+    )
+
+
+def representative(plan: StudyPlan, best: pd.DataFrame) -> RunSpec:
+    """Point 0, replication 0, the best policy there."""
+    policy = str(best.iloc[0]["policy"]) if len(best) else plan.policies[0]
+    for spec in plan.specs():
+        if spec.point == 0 and spec.replication == 0 and spec.policy == policy:
+            return spec
+    raise LookupError(f"no run of point 0 with policy {policy}")
+
+
+def meta(plan: StudyPlan, kind: str, **extra: Any) -> dict[str, Any]:
+    """The meta.json mapping (started_at, wall_time, backend ... come in ``extra``)."""
+    return {
+        "kind": kind,
+        "scenario": plan.scenario.model_dump(mode="json"),
+        "scenario_name": plan.scenario.name,
+        "master_seed": plan.master_seed,
+        "replications": plan.replications,
+        "seeds": plan.seeds,
+        "duration": plan.scenario.duration,
+        "warmup": plan.scenario.warmup,
+        "grid": {k: list(v) for k, v in plan.grid.items()},
+        "policies": list(plan.policies),
+        "runs": len(plan.points) * len(plan.policies) * plan.replications,
+        "versions": versions(),
+        "id_columns": list(ID_COLUMNS),
+        "argv": sys.argv,
+        **extra,
+    }

@@ -1,0 +1,193 @@
+"""A study plan: grid points x policies x replications, expanded into run specs.
+
+Everything a study will run is decided and validated here, before the first run: each
+swept path must be a field of the Scenario model, each grid point's scenario must validate
+(``twin.loader.with_overrides``), and each policy must be known for that point's robot
+count. A mistake is a one-line :class:`StudyError` naming the path and the value.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from pydantic import BaseModel
+
+from pnp_twin.studies.seeds import replication_seeds
+from policies import make_policy
+from twin.errors import UserError
+from twin.loader import ScenarioError, with_overrides
+from twin.scenario import Scenario
+
+RESERVED = {
+    "sweep": "the study itself cannot be swept",
+    "seed": "replication seeds come from the master seed; use --replications",
+    "name": "the scenario name is not a line parameter",
+    "description": "the description is not a line parameter",
+    "source_dir": "source_dir is set by the loader",
+}
+
+
+class StudyError(UserError):
+    """A mistake in a study definition or its output folder; the message is one line."""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a study: what the backends hand to ``pnp_twin.studies.execute.execute``."""
+
+    run_id: str
+    point: int
+    values: dict[str, Any]
+    policy: str
+    replication: int
+    seed: int
+    scenario: Scenario
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    """A validated study: the base scenario, the grid, the policies and the replications."""
+
+    scenario: Scenario
+    grid: dict[str, tuple[Any, ...]]
+    policies: tuple[str, ...]
+    replications: int
+    master_seed: int
+    points: tuple[dict[str, Any], ...]
+    scenarios: tuple[Scenario, ...] = field(repr=False)
+
+    @property
+    def seeds(self) -> list[int]:
+        """The seed of each replication (common to every point and policy)."""
+        return replication_seeds(self.master_seed, self.replications)
+
+    def specs(self) -> list[RunSpec]:
+        """Every run, ordered by point, policy, replication."""
+        seeds = self.seeds
+        out = []
+        for p, (values, sc) in enumerate(zip(self.points, self.scenarios, strict=True)):
+            for policy in self.policies:
+                for k, seed in enumerate(seeds):
+                    rid = run_id(p, policy, k)
+                    out.append(RunSpec(rid, p, values, policy, k, seed, sc))
+        return out
+
+    def definition(self) -> dict[str, Any]:
+        """What identifies the study (for resume): a changed definition is a new study."""
+        return {
+            "scenario": self.scenario.model_dump(mode="json", exclude={"source_dir"}),
+            "grid": {k: list(v) for k, v in self.grid.items()},
+            "policies": list(self.policies),
+            "replications": self.replications,
+            "master_seed": self.master_seed,
+        }
+
+
+def run_id(point: int, policy: str, replication: int) -> str:
+    """A stable, file-name-safe id, e.g. ``p003-SPT-SPT-SPT-FIFO-r01``."""
+    slug = re.sub(r"[^A-Za-z0-9]+", "-", policy).strip("-") or "policy"
+    if slug.replace("-", ",") != policy.upper() and slug != policy:
+        slug += "-" + hashlib.sha1(policy.encode()).hexdigest()[:6]
+    return f"p{point:03d}-{slug}-r{replication:02d}"
+
+
+def field_path_error(path: str) -> str | None:
+    """Why ``path`` is not a sweepable Scenario field, or None if it is one."""
+    keys = path.split(".")
+    if keys[0] in RESERVED:
+        return f"sweep.grid: '{path}' cannot be swept; {RESERVED[keys[0]]}"
+    model: type[BaseModel] | None = Scenario
+    for depth, key in enumerate(keys):
+        if model is None:
+            parent = ".".join(keys[:depth])
+            return f"sweep.grid: '{path}' is not a scenario field; '{parent}' is a value"
+        fields = model.model_fields
+        if key not in fields:
+            prefix = ".".join(keys[:depth])
+            allowed = ", ".join(f"{prefix + '.' if prefix else ''}{k}" for k in fields)
+            return f"sweep.grid: '{path}' is not a scenario field; allowed {allowed}"
+        ann = fields[key].annotation
+        model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+    if model is not None:
+        return f"sweep.grid: '{path}' is a section; sweep one of its fields ('{path}.…')"
+    return None
+
+
+def _point_error(values: Mapping[str, Any], message: str) -> str:
+    """Name the swept path and value the validation message is about, if one is."""
+    for path, value in values.items():
+        if message.startswith(path):
+            return f"sweep.grid.{path} = {json.dumps(value)}: {message}"
+    where = ", ".join(f"{k}={json.dumps(v)}" for k, v in values.items())
+    return f"sweep point ({where}): {message}"
+
+
+def expand_grid(grid: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
+    """The grid's points (the product of the value lists), last path varying fastest."""
+    paths = list(grid)
+    return [dict(zip(paths, combo, strict=True)) for combo in itertools.product(*grid.values())]
+
+
+def build_plan(
+    scenario: Scenario,
+    grid: Mapping[str, Sequence[Any]] | None = None,
+    policies: Sequence[str] | None = None,
+    replications: int | None = None,
+    duration: float | None = None,
+    warmup: float | None = None,
+) -> StudyPlan:
+    """Validate a study; arguments override the scenario's ``sweep`` section."""
+    sweep = scenario.sweep
+    grid = dict(grid if grid is not None else (sweep.grid if sweep else {}))
+    if policies is None or len(policies) == 0:
+        policies = list(sweep.policies) if sweep and sweep.policies else [scenario.policy]
+    reps = replications or (sweep.replications if sweep else 5)
+    if reps < 1:
+        raise StudyError(f"--replications: {reps} is not allowed; give 1 or more")
+    base: dict[str, Any] = {}
+    d = duration if duration is not None else (sweep.duration if sweep else None)
+    w = warmup if warmup is not None else (sweep.warmup if sweep else None)
+    if d is not None:
+        base["duration"] = d
+    if w is not None:
+        base["warmup"] = w
+    try:
+        resolved = with_overrides(scenario, base) if base else scenario
+    except ScenarioError as e:
+        raise StudyError(f"sweep: {e}") from None
+    for path, values in grid.items():
+        problem = field_path_error(path)
+        if problem:
+            raise StudyError(problem)
+        if isinstance(values, str | bytes) or not isinstance(values, Sequence) or not values:
+            raise StudyError(f"sweep.grid.{path}: {values!r} is not a non-empty list of values")
+    if len(set(policies)) != len(policies):
+        raise StudyError(f"sweep.policies: {list(policies)} names a policy twice")
+    points = expand_grid(grid)
+    scenarios = []
+    for point in points:
+        try:
+            sc = with_overrides(resolved, point)
+        except ScenarioError as e:
+            raise StudyError(_point_error(point, str(e))) from None
+        for name in policies:
+            try:
+                make_policy(name, sc.robots.count)
+            except UserError as e:
+                raise StudyError(f"sweep.policies: {e}") from None
+        scenarios.append(sc)
+    return StudyPlan(
+        scenario=resolved,
+        grid={k: tuple(v) for k, v in grid.items()},
+        policies=tuple(policies),
+        replications=int(reps),
+        master_seed=scenario.seed,
+        points=tuple(points),
+        scenarios=tuple(scenarios),
+    )

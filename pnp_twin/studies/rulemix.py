@@ -1,0 +1,187 @@
+"""Rule-mix search: the best per-robot mix of dispatching rules for one line.
+
+A mix gives each robot its own rule, e.g. ``SPT,SPT,SPT,FIFO`` (Huang et al. 2015 found
+"SPT upstream, FIFO on the last robot" best). Every mix is evaluated on the same
+replications (common random numbers) by its mean gripping rate. Where RULES^N is at most
+``EXHAUSTIVE_LIMIT`` mixes every mix is run; beyond, a GRASP (greedy randomised adaptive
+search, as Huang et al.) runs within a budget of mixes:
+
+1. evaluate every uniform mix (one rule on all robots) and start from the best;
+2. construction: robot by robot, upstream first, try every rule at that position (the
+   others as they stand), keep the rules within ``alpha`` of the best of them
+   (the restricted candidate list) and draw one at random from the search generator;
+3. local search: best improvement over the mixes that change one robot's rule, until none
+   improves;
+4. repeat 2-3 while the budget lasts; the ranking covers every mix evaluated.
+
+The search is deterministic for a master seed (its generator is a child stream of it), so a
+resumed search replays the same path and reuses the journaled runs.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pnp_twin.studies.folder import Tables
+from pnp_twin.studies.journal import write_json
+from pnp_twin.studies.plan import StudyError, StudyPlan, build_plan
+from pnp_twin.studies.runner import Options, Session, finish, open_session
+from pnp_twin.studies.seeds import search_rng
+from policies import RULES
+from twin.scenario import Scenario
+from twin.stats import t_interval
+
+log = logging.getLogger(__name__)
+
+EXHAUSTIVE_LIMIT = 250
+DEFAULT_BUDGET = 150
+ALPHA = 0.3
+
+
+def mix_name(rules: Sequence[str]) -> str:
+    """``["SPT", "FIFO"]`` -> ``"SPT,FIFO"``."""
+    return ",".join(rules)
+
+
+class MixSearch:
+    """Evaluates mixes in batches (one backend call per batch), caching mean G per mix."""
+
+    def __init__(
+        self, scenario: Scenario, session: Session, replications: int, budget: int
+    ) -> None:
+        self.scenario = scenario
+        self.session = session
+        self.replications = replications
+        self.budget = budget
+        self.order: list[str] = []
+        self.scores: dict[str, float] = {}
+        self.rows: dict[str, list[dict[str, Any]]] = {}
+
+    @property
+    def left(self) -> int:
+        return self.budget - len(self.order)
+
+    def evaluate(self, mixes: Sequence[str]) -> dict[str, float]:
+        """Mean gripping rate of each mix (new ones run, within the budget)."""
+        new = [m for m in dict.fromkeys(mixes) if m not in self.scores][: max(self.left, 0)]
+        if new:
+            plan = self.plan(new)
+            specs = plan.specs()
+            self.session.plan_more(len(specs))
+            for spec, row in zip(specs, self.session.run(specs), strict=True):
+                self.rows.setdefault(spec.policy, []).append(row)
+            for m in new:
+                self.order.append(m)
+                self.scores[m] = float(np.mean([r["gripping_rate"] for r in self.rows[m]]))
+        return {m: self.scores[m] for m in mixes if m in self.scores}
+
+    def plan(self, mixes: Sequence[str]) -> StudyPlan:
+        """The one-point study plan of ``mixes``."""
+        return build_plan(self.scenario, grid={}, policies=mixes, replications=self.replications)
+
+
+def exhaustive(search: MixSearch, rules: Sequence[str], n: int) -> None:
+    """Evaluate every mix of ``rules`` over ``n`` robots."""
+    search.evaluate([mix_name(c) for c in itertools.product(rules, repeat=n)])
+
+
+def grasp(
+    search: MixSearch, rules: Sequence[str], n: int, rng: np.random.Generator, alpha: float
+) -> None:
+    """Greedy randomised construction + best-improvement local search, within the budget."""
+    uniform = search.evaluate([mix_name([r] * n) for r in rules])
+    start = max(uniform, key=uniform.__getitem__).split(",")
+    while search.left > 0:
+        current = list(start)
+        for i in range(n):  # construction, upstream first
+            options = {r: mix_name(current[:i] + [r] + current[i + 1 :]) for r in rules}
+            scores = search.evaluate(list(options.values()))
+            scored = {r: scores[m] for r, m in options.items() if m in scores}
+            if not scored:
+                return
+            top, low = max(scored.values()), min(scored.values())
+            rcl = [r for r, s in scored.items() if s >= top - alpha * (top - low)]
+            current[i] = rcl[int(rng.integers(len(rcl)))]
+        score = search.scores[mix_name(current)]
+        while search.left > 0:  # local search: best single-robot change
+            near = [
+                mix_name(current[:i] + [r] + current[i + 1 :])
+                for i in range(n)
+                for r in rules
+                if r != current[i]
+            ]
+            scores = search.evaluate(near)
+            if not scores:
+                return
+            best = max(scores, key=scores.__getitem__)
+            if scores[best] <= score:
+                break
+            current, score = best.split(","), scores[best]
+
+
+def rank(search: MixSearch, confidence: float) -> list[dict[str, Any]]:
+    """Every evaluated mix with its mean and CI, best first (ties: evaluation order)."""
+    out = []
+    for m in search.order:
+        mean, low, high = t_interval([r["gripping_rate"] for r in search.rows[m]], confidence)
+        out.append({"mix": m, "gripping_rate_mean": mean, "ci_low": low, "ci_high": high})
+    return sorted(out, key=lambda r: -r["gripping_rate_mean"])
+
+
+def run_mix(
+    scenario: Scenario,
+    out: Path,
+    options: Options,
+    rules: Sequence[str] | None = None,
+    replications: int | None = None,
+    budget: int = DEFAULT_BUDGET,
+    alpha: float = ALPHA,
+) -> tuple[Tables, dict[str, Any]]:
+    """Search the best rule mix of ``scenario``'s line into ``out``; tables and mix.json."""
+    sweep = scenario.sweep
+    if rules is None or len(rules) == 0:
+        rules = list(sweep.policies) if sweep and sweep.policies else list(RULES)
+    rules = [r.strip().upper() for r in rules]
+    for r in rules:
+        if r not in RULES:
+            raise StudyError(f"mix: '{r}' is not a rule; allowed {', '.join(RULES)}")
+    if len(set(rules)) != len(rules):
+        raise StudyError(f"mix: the rules {rules} name a rule twice")
+    if budget < 1:
+        raise StudyError(f"--budget: {budget} is not allowed; give 1 or more mixes")
+    n = scenario.robots.count
+    method = "exhaustive" if len(rules) ** n <= EXHAUSTIVE_LIMIT else "grasp"
+    base = build_plan(scenario, grid={}, policies=[rules[0]], replications=replications)
+    line = base.scenario.model_copy(update={"sweep": None})
+    extra = {"rules": rules, "method": method, "budget": budget, "alpha": alpha}
+    definition_plan = build_plan(line, grid={}, policies=[], replications=base.replications)
+    session = open_session(out, definition_plan, "mix", options, extra)
+    search = MixSearch(
+        line, session, base.replications, len(rules) ** n if method == "exhaustive" else budget
+    )
+    if method == "exhaustive":
+        exhaustive(search, rules, n)
+    else:
+        grasp(search, rules, n, search_rng(scenario.seed), alpha)
+    plan = search.plan(search.order)
+    rows = [row for m in search.order for row in search.rows[m]]
+    ranked = rank(search, options.confidence)
+    mix = {
+        "method": method,
+        "rules": rules,
+        "ranked": ranked,
+        "best": ranked[0]["mix"],
+        "evaluated": len(search.order),
+        "budget": search.budget,
+        "replications": base.replications,
+    }
+    tables = finish(session, plan, "mix", rows, {"method": method, "rules": rules})
+    write_json(out / "mix.json", mix)
+    log.info("mix search (%s): best %s of %d mixes", method, mix["best"], len(search.order))
+    return tables, mix

@@ -1,0 +1,293 @@
+"""Sizing answers: the smallest robot count (slowest arm, highest flow) reaching a target.
+
+A count *reaches* the target gripping rate G* with confidence c when the lower bound of the
+two-sided c t-interval of its mean G over replications is at least G* (the best policy at
+that grid point). The answer sits next to the empirical rule of MODEL.md,
+N_min = f_p / PPas, where PPas is the picks per second of one saturated robot, measured in
+the study as throughput / (N x utilisation) at its smallest robot count, plus a safety
+margin of 20 % (rounded up): ``n_recommended = ceil(1.2 x N_min)``.
+
+Breakdowns: ``size`` adds ``robots.mtbf`` to the grid, [0, MTBF], with the scenario's MTBF
+and MTTR or, when it has none, the assumption of a gripper jam every 10 minutes cleared in
+30 s (MTBF 600 s, MTTR 30 s, availability A = MTBF / (MTBF + MTTR) = 95.2 %). The answer is
+taken without failures; ``breakdown`` gives the count needed with them, and what one robot
+down does to the answer (the gripping rate of N - 1 robots: a stopped robot's workspace is
+just belt the parts pass through).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from pnp_twin.studies.folder import Tables
+from pnp_twin.studies.journal import write_json
+from pnp_twin.studies.plan import StudyError, build_plan
+from pnp_twin.studies.runner import Options, finish, open_session
+from twin.loader import ScenarioError, with_overrides
+from twin.scenario import Scenario
+
+COUNT = "robots.count"
+MTBF = "robots.mtbf"
+DEFAULT_MTBF = 600.0  # s: a gripper jam every 10 minutes
+DEFAULT_MTTR = 30.0  # s: cleared in half a minute
+MARGIN = 0.20  # the rule of thumb's safety margin
+LIMITS = {"robots.arm_speed": "slowest", "feeder.rate": "highest"}
+
+
+def sizing_setup(
+    scenario: Scenario, grid: Mapping[str, Sequence[Any]]
+) -> tuple[Scenario, dict[str, list[Any]]]:
+    """The scenario and grid a sizing study runs: robot counts, failures off and on."""
+    out: dict[str, list[Any]] = {k: list(v) for k, v in grid.items()}
+    if COUNT not in out:
+        n = scenario.robots.count
+        out = {COUNT: list(range(1, max(8, 2 * n) + 1)), **out}
+    if scenario.robots.workspaces is not None:
+        raise StudyError(
+            "robots.workspaces: an explicit layout cannot follow a swept robots.count; use "
+            "robots.first_workspace_start and robots.workspace_length instead"
+        )
+    counts = out[COUNT]
+    if not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in counts):
+        raise StudyError(f"sweep.grid.{COUNT}: {counts} must be whole numbers >= 1")
+    r = scenario.robots
+    mtbf = r.mtbf if r.mtbf > 0 else DEFAULT_MTBF
+    mttr = r.mttr if r.mttr > 0 else DEFAULT_MTTR
+    out.setdefault(MTBF, [0.0, mtbf])
+    end = r.first_workspace_start + max(counts) * (r.workspace_length + r.workspace_gap)
+    base = {"robots.mttr": mttr, "belt.length": max(scenario.belt.length, round(end + 0.1, 3))}
+    try:
+        return with_overrides(scenario, base), out
+    except ScenarioError as e:
+        raise StudyError(f"size: {e}") from None
+
+
+def _conditions(summary: pd.DataFrame, paths: Sequence[str]) -> list[dict[str, Any]]:
+    if not paths:
+        return [{}]
+    values = [list(dict.fromkeys(summary[p])) for p in paths]
+    return [dict(zip(paths, combo, strict=True)) for combo in itertools.product(*values)]
+
+
+def _select(frame: pd.DataFrame, condition: Mapping[str, Any]) -> pd.DataFrame:
+    mask = pd.Series(True, index=frame.index)
+    for k, v in condition.items():
+        mask &= frame[k] == v
+    return frame[mask]
+
+
+def smallest_count(rows: pd.DataFrame) -> int | None:
+    """The smallest robot count whose row reached the target (None if none did)."""
+    hit = rows[rows["reached"]]
+    return int(hit[COUNT].min()) if len(hit) else None
+
+
+def point_rows(summary: pd.DataFrame, grid: Sequence[str], target: float) -> pd.DataFrame:
+    """Per grid point, the best policy's mean G, CI and whether it reached the target."""
+    best = summary.loc[summary.groupby("point")["gripping_rate_mean"].idxmax()]
+    out = best[["point", *grid, "policy"]].copy()
+    out["gripping_rate_mean"] = best["gripping_rate_mean"]
+    out["ci_low"] = best["gripping_rate_ci_low"]
+    out["ci_high"] = best["gripping_rate_ci_high"]
+    out["reached"] = (best["gripping_rate_ci_low"] >= target).to_numpy()
+    return out.reset_index(drop=True)
+
+
+def _robust_answer(rows: pd.DataFrame, conditions: list[dict[str, Any]]) -> int | None:
+    """Smallest count that reaches the target in every swept condition."""
+    for n in sorted(rows[COUNT].unique()):
+        at = rows[rows[COUNT] == n]
+        if all(_select(at, c)["reached"].all() and len(_select(at, c)) for c in conditions):
+            return int(n)
+    return None
+
+
+def _limits(rows: pd.DataFrame, others: Sequence[str]) -> list[dict[str, Any]]:
+    out = []
+    for path, goal in LIMITS.items():
+        if path not in others:
+            continue
+        rest = [p for p in others if p != path]
+        for n in sorted(rows[COUNT].unique()):
+            for cond in _conditions(rows, rest):
+                at = _select(rows[rows[COUNT] == n], cond)
+                hit = at[at["reached"]][path]
+                value = (hit.min() if goal == "slowest" else hit.max()) if len(hit) else None
+                out.append(
+                    {
+                        "parameter": path,
+                        "goal": goal,
+                        COUNT: int(n),
+                        **cond,
+                        "value": None if value is None else float(value),
+                    }
+                )
+    return out
+
+
+def _ppas(results: pd.DataFrame, rows: pd.DataFrame) -> tuple[float, float, dict[str, Any]]:
+    """(part flow, picks/s of a saturated robot, where) at the smallest count, first condition."""
+    first = rows.iloc[0]
+    at = results[(results["point"] == first["point"]) & (results["policy"] == first["policy"])]
+    n = int(first[COUNT])
+    busy = (at["utilisation"] * n).replace(0, math.nan)
+    ppas = float((at["throughput"] / busy).mean())
+    return float(at["part_flow"].mean()), ppas, {"point": int(first["point"]), COUNT: n}
+
+
+def _g(row: pd.Series | None) -> dict[str, Any] | None:
+    if row is None:
+        return None
+    return {
+        "robots": int(row[COUNT]),
+        "gripping_rate_mean": float(row["gripping_rate_mean"]),
+        "ci_low": float(row["ci_low"]),
+        "ci_high": float(row["ci_high"]),
+        "reached": bool(row["reached"]),
+    }
+
+
+def analyse(
+    results: pd.DataFrame,
+    summary: pd.DataFrame,
+    grid: Sequence[str],
+    scenario: Scenario,
+    target: float,
+    confidence: float,
+) -> dict[str, Any]:
+    """The sizing.json mapping of a finished sizing study."""
+    rows = point_rows(summary, grid, target)
+    mtbf_values = sorted(rows[MTBF].unique()) if MTBF in grid else [0.0]
+    others = [p for p in grid if p not in (COUNT, MTBF)]
+    plain = rows[rows[MTBF] == 0] if MTBF in grid else rows
+    failing = rows[rows[MTBF] == mtbf_values[-1]] if mtbf_values[-1] > 0 else None
+    conditions = _conditions(plain, others)
+    answer = _robust_answer(plain, conditions)
+    by_condition = [{**c, "answer": smallest_count(_select(plain, c))} for c in conditions]
+    flow, ppas, where = _ppas(results, plain.sort_values([COUNT, "point"]))
+    n_min = flow / ppas if ppas > 0 else math.nan
+    n_rec = math.ceil(n_min * (1 + MARGIN)) if math.isfinite(n_min) else None
+    mtbf = float(mtbf_values[-1]) if mtbf_values[-1] > 0 else DEFAULT_MTBF
+    mttr = float(scenario.robots.mttr) or DEFAULT_MTTR
+    availability = mtbf / (mtbf + mttr)
+    n_fail = _robust_answer(failing, conditions) if failing is not None else None
+    base = _select(plain, conditions[0])
+    minus = None
+    if answer is not None:
+        m = base[base[COUNT] == answer - 1]
+        minus = _g(m.iloc[0]) if len(m) else None
+    answer_row = base[base[COUNT] == answer].iloc[0] if answer is not None else None
+    out = {
+        "target": target,
+        "confidence": confidence,
+        "parameter": COUNT,
+        "rows": _records(rows),
+        "answer": answer,
+        "by_condition": by_condition,
+        "limits": _limits(plain, others),
+        "rule_of_thumb": {
+            "part_flow": flow,
+            "ppas": ppas,
+            "n_min": n_min,
+            "margin": MARGIN,
+            "n_recommended": n_rec,
+            "measured_at": where,
+        },
+        "breakdown": {
+            "mtbf": mtbf,
+            "mttr": mttr,
+            "availability": availability,
+            "assumed": scenario.robots.mtbf == 0,
+            "n_with_failures": n_fail,
+            "n_min_with_failures": n_min / availability if math.isfinite(n_min) else None,
+            "n_minus_1": minus,
+        },
+    }
+    out["text"] = describe(out, _g(answer_row), conditions[0] if others else {})
+    return out
+
+
+def _records(frame: pd.DataFrame) -> list[dict[str, Any]]:
+    return [
+        {k: (v.item() if hasattr(v, "item") else v) for k, v in r.items()}
+        for r in frame.to_dict(orient="records")
+    ]
+
+
+def describe(s: dict[str, Any], at_answer: dict[str, Any] | None, base: dict[str, Any]) -> str:
+    """The sizing answer in plain words."""
+    conf = f"{100 * s['confidence']:g} %"
+    where = ""
+    if len(s["by_condition"]) > 1:
+        where = " in every swept condition"
+    if s["answer"] is None:
+        first = f"No robot count in the study reaches {s['target']:g} % with {conf} confidence."
+    else:
+        lb = f" (lower bound {at_answer['ci_low']:.1f} %)" if at_answer else ""
+        first = (
+            f"{s['answer']} robots reach a {s['target']:g} % gripping rate with {conf} "
+            f"confidence{where}{lb}."
+        )
+    r = s["rule_of_thumb"]
+    rot = (
+        f" Rule of thumb: N_min = f_p / PPas = {r['part_flow']:.2f} / {r['ppas']:.2f} = "
+        f"{r['n_min']:.2f}, so {r['n_recommended']} robots with a {100 * r['margin']:g} % margin."
+        if r["n_recommended"] is not None
+        else ""
+    )
+    b = s["breakdown"]
+    fail = (
+        f" With breakdowns (MTBF {b['mtbf']:g} s, MTTR {b['mttr']:g} s"
+        f"{', assumed' if b['assumed'] else ''}; availability {100 * b['availability']:.1f} %), "
+        + (
+            f"{b['n_with_failures']} robots are needed."
+            if b["n_with_failures"] is not None
+            else "no count in the study reaches the target."
+        )
+    )
+    m = b["n_minus_1"]
+    down = (
+        f" With one robot down ({m['robots']} working), G = {m['gripping_rate_mean']:.1f} % "
+        f"[{m['ci_low']:.1f}, {m['ci_high']:.1f}]."
+        if m
+        else ""
+    )
+    return first + rot + fail + down
+
+
+def run_size(
+    scenario: Scenario,
+    out: Path,
+    target: float | None,
+    options: Options,
+    policies: Sequence[str] | None = None,
+    replications: int | None = None,
+) -> tuple[Tables, dict[str, Any]]:
+    """Run a sizing study into ``out``; returns its tables and the sizing.json mapping."""
+    sweep = scenario.sweep
+    target = target if target is not None else (sweep.target if sweep else None)
+    if target is None:
+        raise StudyError("--target: no target gripping rate; give --target 99 or sweep.target")
+    if not 0 < target <= 100:
+        raise StudyError(f"--target: {target:g} is not allowed; give a percentage in (0, 100]")
+    if not 0 < options.confidence < 1:
+        raise StudyError(f"--confidence: {options.confidence:g} is not allowed; give 0 < c < 1")
+    line, grid = sizing_setup(scenario, sweep.grid if sweep else {})
+    plan = build_plan(line, grid=grid, policies=policies, replications=replications)
+    extra = {"target": target, "confidence": options.confidence}
+    session = open_session(out, plan, "size", options, extra)
+    specs = plan.specs()
+    session.plan_more(len(specs))
+    rows = session.run(specs)
+    tables = finish(session, plan, "size", rows, extra)
+    sizing = analyse(
+        tables.results, tables.summary, list(plan.grid), plan.scenario, target, options.confidence
+    )
+    write_json(out / "sizing.json", sizing)
+    return tables, sizing

@@ -1,0 +1,81 @@
+"""Summaries of a results table: means with t-intervals, paired differences, best policy.
+
+Replications use common random numbers, so differences between policies at one grid point
+are paired by replication: the interval of the mean difference is much narrower than the
+two separate intervals suggest.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import pandas as pd
+
+from twin.stats import t_interval
+
+KPIS = ("gripping_rate", "throughput", "efficiency", "utilisation")
+
+
+def summarise(results: pd.DataFrame, grid: Sequence[str], confidence: float = 0.95) -> pd.DataFrame:
+    """One row per point x policy: grid columns, policy, n, and mean/CI of each KPI."""
+    rows = []
+    for (point, policy), g in results.groupby(["point", "policy"], sort=True):
+        row = {"point": point, **{c: g[c].iloc[0] for c in grid}, "policy": policy, "n": len(g)}
+        for kpi in KPIS:
+            mean, low, high = t_interval(g[kpi].to_numpy(), confidence)
+            if kpi == "gripping_rate":  # a percentage: the interval cannot leave [0, 100]
+                low, high = max(low, 0.0), min(high, 100.0)
+            row.update({f"{kpi}_mean": mean, f"{kpi}_ci_low": low, f"{kpi}_ci_high": high})
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def best_policies(summary: pd.DataFrame, grid: Sequence[str]) -> pd.DataFrame:
+    """One row per point: the policy with the highest mean gripping rate (first on ties)."""
+    rows = []
+    for point, g in summary.groupby("point", sort=True):
+        top = (
+            g.loc[g["gripping_rate_mean"].idxmax()]
+            if g["gripping_rate_mean"].notna().any()
+            else g.iloc[0]
+        )
+        rows.append(
+            {
+                "point": point,
+                **{c: top[c] for c in grid},
+                "policy": top["policy"],
+                "gripping_rate_mean": top["gripping_rate_mean"],
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def paired_differences(
+    results: pd.DataFrame,
+    best: pd.DataFrame,
+    grid: Sequence[str],
+    confidence: float = 0.95,
+) -> pd.DataFrame:
+    """Each policy minus the point's best policy, in gripping-rate points, paired by replication."""
+    rows = []
+    reference = dict(zip(best["point"], best["policy"], strict=True))
+    for (point, policy), g in results.groupby(["point", "policy"], sort=True):
+        ref = reference[point]
+        at = results[(results["point"] == point) & (results["policy"] == ref)]
+        mine = g.set_index("replication")["gripping_rate"]
+        theirs = at.set_index("replication")["gripping_rate"]
+        diff = (mine - theirs).dropna()
+        mean, low, high = t_interval(diff.to_numpy(), confidence)
+        rows.append(
+            {
+                "point": point,
+                **{c: g[c].iloc[0] for c in grid},
+                "policy": policy,
+                "reference": ref,
+                "diff_mean": mean,
+                "diff_ci_low": low,
+                "diff_ci_high": high,
+                "n": len(diff),
+            }
+        )
+    return pd.DataFrame(rows)

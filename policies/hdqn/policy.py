@@ -1,0 +1,160 @@
+"""The trained HDQN as a policy like any other: ``--policy hdqn:DIR``.
+
+:class:`HDQNPolicy` is a :class:`~policies.base.RuleChoosingPolicy`: at each decision it
+draws the same observation the training environment drew (with the environment's own
+:class:`~twin.camera.BeltCamera`), asks the Q-network for the greedy rule and lets
+that rule pick the part. :data:`policies.registry.PREFIXED` names :func:`from_spec` for the
+``hdqn`` prefix; it needs torch (the ``learn`` extra).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from policies.base import RuleChoosingPolicy
+from policies.hdqn.agent import DQNAgent, decode_joint, robot_onehot
+from policies.hdqn.checkpoint import META, CheckpointError, load_agent, resolve
+from twin.belt import Belt
+from twin.camera import BeltCamera
+from twin.decision import Decision, RobotSpec
+from twin.scenario import Scenario
+
+log = logging.getLogger(__name__)
+
+
+class _Clock:
+    now = 0.0
+
+
+class _Gate:
+    def __init__(self) -> None:
+        self.epochs = 0
+        self.pending: list[int] = []
+
+
+class _LineView:
+    """The three things :class:`BeltCamera` reads from a line (belt, clock, gateway), fed
+    from a decision: outside hold mode the policy sees the belt, not the line."""
+
+    def __init__(self, belt: Belt) -> None:
+        self.belt = belt
+        self.env = _Clock()
+        self.gateway = _Gate()
+
+
+def camera_scenario(base: dict[str, Any], belt: Belt, robots: list[RobotSpec]) -> Scenario:
+    """The trained scenario with the live line's belt and workspaces (what the camera uses)."""
+    data = dict(base)
+    data["belt"] = {
+        **base.get("belt", {}),
+        "length": belt.length,
+        "width": belt.width,
+        "speed": belt.speed,
+        "grid": list(belt.grid),
+    }
+    data["robots"] = {
+        **base.get("robots", {}),
+        "count": len(robots),
+        "workspaces": [list(r.workspace) for r in robots],
+        "arm_speed": max(r.arm_speed for r in robots),
+        "overrides": [],
+    }
+    data.pop("sweep", None)
+    return Scenario.model_validate(data)
+
+
+class HDQNPolicy(RuleChoosingPolicy):
+    """Greedy rule choice of a trained meta-controller (see the module docstring).
+
+    ``mode`` is the training set-up: ``async``/``sync`` agents see the deciding robot's
+    workspace window plus its one-hot index (or, trained with ``view = "belt"``, the whole
+    belt plus the one-hot); a ``single`` agent sees the whole belt and picks a joint action,
+    of which the deciding robot uses its own component.
+    """
+
+    def __init__(self, agent: DQNAgent, meta: dict[str, Any]) -> None:
+        super().__init__()
+        self.agent = agent
+        self.meta = meta
+        self.mode: str = meta["mode"]
+        self.rules: list[str] = list(meta["rules"])
+        self.channels = int(agent.obs_shape[0])
+        # checkpoints from before the view option saw windows in the multi-agent modes
+        view = meta.get("view", meta.get("train_args", {}).get("view", "window"))
+        self.whole_belt: bool = self.mode == "single" or view == "belt"
+        self.name = meta.get("name", f"hdqn-{self.mode}")
+        self.view: _LineView | None = None
+        self.camera: BeltCamera | None = None
+
+    @classmethod
+    def load(cls, folder: str | Path, device: str = "cpu") -> HDQNPolicy:
+        """The policy of a checkpoint folder (or a training output holding one run).
+
+        A training run's folder holds its latest weights and, in ``best/``, the weights
+        that evaluated best on the validation seeds: those are loaded when present.
+        """
+        import torch
+
+        # One small network per decision: extra intra-op threads only cost (and they
+        # oversubscribe the cores when sweeps run one policy per worker process).
+        torch.set_num_threads(1)
+        path = resolve(folder)
+        if (path / "best" / META).is_file():
+            path = path / "best"
+        agent, meta = load_agent(path, device)
+        return cls(agent, meta)
+
+    def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
+        super().reset(robots, rng)
+        n = int(self.meta["n_robots"])
+        if len(robots) != n:
+            raise CheckpointError(
+                f"policy: the HDQN was trained for {n} robots, the line has {len(robots)}"
+            )
+
+    def attach(self, belt: Belt) -> None:
+        """Called by the line with its belt: build the camera for this line's geometry."""
+        self.view = _LineView(belt)
+        scenario = camera_scenario(self.meta["scenario"], belt, self.robots)
+        camera = BeltCamera(scenario, self.channels)
+        camera.attach(self.view)  # type: ignore[arg-type]
+        want = tuple(self.agent.obs_shape)
+        got = camera.shape if self.whole_belt else camera.window_shape
+        if tuple(got) != want:
+            raise CheckpointError(
+                f"policy: this line gives observations of shape {tuple(got)}, the HDQN was "
+                f"trained on {want}; use a line with the trained belt grid and workspace size"
+            )
+        self.camera = camera
+
+    def observe(self, decision: Decision) -> tuple[np.ndarray, np.ndarray | None]:
+        """The network input for a decision: (1, C, H, W) image and the extra features."""
+        view, camera = self.view, self.camera
+        if view is None or camera is None:
+            raise RuntimeError("HDQNPolicy needs the belt: the line calls attach(belt)")
+        view.env.now = decision.time
+        view.gateway.epochs += 1  # a fresh image per decision
+        view.gateway.pending = [decision.robot]
+        if self.mode == "single":
+            return camera.belt()[None], None
+        obs = camera.belt()[None] if self.whole_belt else camera.window(decision.robot)[None]
+        return obs, robot_onehot([decision.robot], len(self.robots))
+
+    def select_rule(self, decision: Decision) -> str:
+        obs, extra = self.observe(decision)
+        action = int(self.agent.greedy(obs, extra)[0])
+        if self.mode == "single":
+            action = decode_joint(action, len(self.robots), len(self.rules))[decision.robot]
+        return self.rules[action]
+
+
+def from_spec(arg: str) -> HDQNPolicy:
+    """``hdqn:DIR``: the checkpoint in DIR (or the newest run under it)."""
+    if not arg:
+        raise CheckpointError("policy: hdqn needs a folder, e.g. hdqn:runs/paper_baseline")
+    return HDQNPolicy.load(arg)
+

@@ -1,0 +1,186 @@
+"""Running studies: workers, resume, the Ray backend, the folder contract, the CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from pnp_twin.studies import Options, build_plan, run_sweep
+from pnp_twin.studies.plan import StudyError
+from twin import load_scenario, with_overrides
+
+GRID = {"robots.arm_speed": [2.0, 4.0], "feeder.rate": [8.0, 12.0]}
+
+
+@pytest.fixture(scope="module")
+def plan():
+    line = with_overrides(load_scenario("paper_baseline"), {"duration": 40, "warmup": 5})
+    return build_plan(line, grid=GRID, policies=["SD", "FIFO"], replications=2)
+
+
+def table(folder: Path) -> pd.DataFrame:
+    return pd.read_parquet(folder / "results.parquet").drop(columns="wall_time")
+
+
+@pytest.fixture(scope="module")
+def serial(plan, tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial")
+    run_sweep(plan, out, Options(workers=1))
+    return out
+
+
+def test_folder_contract(serial, plan):
+    df = pd.read_parquet(serial / "results.parquet")
+    assert len(df) == 4 * 2 * 2
+    assert list(df.columns[:7]) == [
+        "run_id",
+        "point",
+        "robots.arm_speed",
+        "feeder.rate",
+        "policy",
+        "replication",
+        "seed",
+    ]
+    assert df.columns[-1] == "wall_time"
+    for c in ("gripping_rate", "throughput", "efficiency", "r4_utilisation", "rule_SD"):
+        assert c in df.columns
+    assert df.equals(df.sort_values(["point", "policy", "replication"]).reset_index(drop=True))
+    # common random numbers: one seed per replication, and so one part stream per rate
+    assert df.groupby("replication")["seed"].nunique().eq(1).all()
+    same = df[(df["feeder.rate"] == 8.0) & (df["replication"] == 0)]
+    assert same["parts_presented"].nunique() == 1
+    csv = pd.read_csv(serial / "results.csv")
+    assert list(csv.columns) == list(df.columns) and len(csv) == len(df)
+    summary = pd.read_csv(serial / "summary.csv")
+    assert len(summary) == 8 and summary["n"].eq(2).all()
+    assert {"gripping_rate_ci_low", "utilisation_mean"} <= set(summary.columns)
+    best = pd.read_csv(serial / "best.csv")
+    paired = pd.read_csv(serial / "paired.csv")
+    assert len(best) == 4 and len(paired) == 8
+    assert (paired["reference"] == paired["point"].map(best.set_index("point")["policy"])).all()
+    meta = json.loads((serial / "meta.json").read_text())
+    assert meta["kind"] == "sweep" and meta["replications"] == 2
+    assert meta["grid"] == {k: list(v) for k, v in GRID.items()}
+    assert {"pnp_twin", "python", "simpy", "numpy", "pandas", "plotly"} <= set(meta["versions"])
+    run = json.loads((serial / "records" / "run.json").read_text())
+    assert run["point"] == 0 and run["replication"] == 0 and run["policy"] == best["policy"][0]
+    parts = pd.read_parquet(serial / "records" / "parts.parquet")
+    row = df[(df["point"] == 0) & (df["replication"] == 0) & (df["policy"] == run["policy"])]
+    assert (parts["outcome"] == "picked").sum() >= int(row["parts_picked"].iloc[0])
+    assert len(list((serial / "runs").glob("*.json"))) == 16
+
+
+def test_two_workers_give_the_same_table(serial, plan, tmp_path):
+    run_sweep(plan, tmp_path, Options(workers=2))
+    pd.testing.assert_frame_equal(table(tmp_path), table(serial))
+    pd.testing.assert_frame_equal(
+        pd.read_csv(tmp_path / "summary.csv"), pd.read_csv(serial / "summary.csv")
+    )
+
+
+def test_resume_skips_finished_runs(serial, plan, tmp_path):
+    run_sweep(plan, tmp_path, Options(workers=1))
+    removed = sorted((tmp_path / "runs").glob("*.json"))[3:9]
+    for p in removed:
+        p.unlink()
+    (tmp_path / "results.parquet").unlink()
+    (tmp_path / "runs" / ".p000-SD-r00.json.x.tmp").write_text("{")  # a killed write
+    seen: list[tuple[int, int]] = []
+    run_sweep(plan, tmp_path, Options(workers=1, progress=lambda d, t: seen.append((d, t))))
+    assert seen[1] == (10, 16) and seen[-1] == (16, 16)  # 10 skipped, 6 run
+    meta = json.loads((tmp_path / "meta.json").read_text())
+    assert meta["runs_skipped"] == 10 and meta["runs_executed"] == 6
+    df = table(tmp_path)
+    assert df["run_id"].is_unique
+    pd.testing.assert_frame_equal(df, table(serial))
+    assert not list((tmp_path / "runs").glob(".*.tmp"))
+
+
+def test_changed_definition_needs_fresh(plan, serial, tmp_path):
+    run_sweep(plan, tmp_path, Options(workers=1))
+    other = build_plan(plan.scenario, grid=GRID, policies=["SD"], replications=2)
+    with pytest.raises(StudyError, match=r"holds a different study \(changed: policies\).*--fresh"):
+        run_sweep(other, tmp_path, Options(workers=1))
+    run_sweep(other, tmp_path, Options(workers=1, fresh=True))
+    df = table(tmp_path)
+    assert set(df["policy"]) == {"SD"}
+    assert len(list((tmp_path / "runs").glob("*.json"))) == 8
+    old = table(serial)
+    old = old[old["policy"] == "SD"].reset_index(drop=True)
+    assert set(old.columns) - set(df.columns) == {"rule_FIFO"}  # no FIFO decisions any more
+    pd.testing.assert_frame_equal(df, old[df.columns])
+
+
+def test_ray_backend_matches_local(tmp_path):
+    pytest.importorskip("ray")
+    line = with_overrides(load_scenario("paper_baseline"), {"duration": 30, "warmup": 5})
+    tiny = build_plan(line, grid={"feeder.rate": [8.0, 12.0]}, policies=["SD"], replications=2)
+    run_sweep(tiny, tmp_path / "local", Options(workers=1))
+    run_sweep(tiny, tmp_path / "ray", Options(backend="ray", workers=2))
+    pd.testing.assert_frame_equal(table(tmp_path / "ray"), table(tmp_path / "local"))
+
+
+def test_unknown_backend_is_an_error(plan, tmp_path):
+    with pytest.raises(StudyError, match="--backend: 'dask' is not allowed; allowed local, ray"):
+        run_sweep(plan, tmp_path, Options(backend="dask"))
+
+
+def cli():
+    import pnp_twin.cli.study_cmd  # noqa: F401  (registers sweep, size, mix)
+    from pnp_twin.cli.app import app
+
+    return app
+
+
+def test_cli_sweep_and_resume(tmp_path):
+    app = cli()
+    args = [
+        "sweep",
+        "paper_baseline",
+        "--out",
+        str(tmp_path),
+        "--workers",
+        "1",
+        "--no-report",
+        "--set",
+        "sweep.grid={'feeder.rate': [8.0, 12.0]}",
+        "--set",
+        "sweep.duration=30",
+        "--set",
+        "sweep.warmup=5",
+        "--replications",
+        "2",
+        "--policy",
+        "SD",
+        "--policy",
+        "SPT",
+    ]
+    first = CliRunner().invoke(app, args)
+    assert first.exit_code == 0, first.output
+    assert "Best policy per grid point" in first.stdout
+    assert len(pd.read_parquet(tmp_path / "results.parquet")) == 8
+    again = CliRunner().invoke(app, args)
+    assert again.exit_code == 0
+    assert json.loads((tmp_path / "meta.json").read_text())["runs_skipped"] == 8
+
+
+def test_cli_bad_sweep_path_is_one_line_exit_2(tmp_path):
+    result = CliRunner().invoke(
+        cli(),
+        [
+            "sweep",
+            "paper_baseline",
+            "--out",
+            str(tmp_path),
+            "--set",
+            "sweep.grid={'robots.arm_sped': [2, 4]}",
+        ],
+    )
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "'robots.arm_sped' is not a scenario field" in lines[0]
+    assert not (tmp_path / "runs").exists()
