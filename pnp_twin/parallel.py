@@ -4,6 +4,11 @@ One mapper each: :func:`pool_map` (local processes, forkserver) and :func:`ray_m
 tasks on a cluster or a local Ray). Both call ``fn`` on every item and hand each result to
 ``on_result`` in the calling process as it arrives; callers make results independent of
 the order (seeds fixed per item), so tables do not depend on the backend or worker count.
+
+Workers end with their caller: each pool worker runs a watchdog thread that ends the
+worker when the calling process is gone (even after a SIGKILL, which no handler sees), so
+no worker, forkserver or resource tracker stays behind holding the caller's pipes. A Ray
+address is checked to answer within :data:`CONNECT_TIMEOUT` before Ray is asked to join it.
 """
 
 from __future__ import annotations
@@ -12,6 +17,9 @@ import logging
 import multiprocessing
 import os
 import signal
+import socket
+import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any
@@ -21,15 +29,43 @@ from twin.errors import UserError
 log = logging.getLogger(__name__)
 
 BACKENDS = ("local", "ray")
+WATCH_INTERVAL = 0.25  # s between a worker's checks that its caller is still alive
+CONNECT_TIMEOUT = 10.0  # s a Ray address has to accept a connection
 
 
 class ParallelError(UserError):
     """A backend cannot be used (Ray missing or unreachable); the message is one line."""
 
 
-def _ignore_sigint() -> None:
-    """Workers leave Ctrl-C to the coordinator, which cancels the queue and exits."""
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie (killed, not yet reaped)."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+            state = f.read().rsplit(")", 1)[1].split()[0]
+        return state not in ("Z", "X")
+    except FileNotFoundError:
+        return False
+    except OSError:  # no /proc (not Linux): ask the kernel
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        except PermissionError:
+            return True
+        return True
+
+
+def _watch_caller(caller: int) -> None:
+    while process_alive(caller):
+        time.sleep(WATCH_INTERVAL)
+    os._exit(1)  # the caller is gone: nobody will read this worker's result
+
+
+def _init_worker(caller: int) -> None:
+    """Workers leave Ctrl-C to the caller (which cancels the queue and exits) and end
+    themselves when the caller is gone."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_watch_caller, args=(caller,), daemon=True).start()
 
 
 def pool_map(
@@ -48,7 +84,7 @@ def pool_map(
     ctx.set_forkserver_preload(list(preload))
     pending = iter(items)
     with ProcessPoolExecutor(
-        max_workers=workers, mp_context=ctx, initializer=_ignore_sigint
+        max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(os.getpid(),)
     ) as pool:
         running: set[Future[Any]] = set()
         try:
@@ -82,6 +118,23 @@ def import_ray() -> Any:
     return ray
 
 
+def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """Refuse, in one line, a ``host:port`` (or ``ray://host:port``) address that does not
+    accept a TCP connection within ``timeout`` s; Ray itself would retry for minutes."""
+    target = address.split("://", 1)[-1]
+    host, sep, port = target.rpartition(":")
+    if not sep or not port.isdigit():
+        return  # "auto" and the like: Ray resolves those itself
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as e:
+        why = "timed out" if isinstance(e, TimeoutError) else (e.strerror or str(e))
+        raise ParallelError(
+            f"--address {address}: cannot connect to Ray ({why} within {timeout:g} s); "
+            "check the address and that the cluster is running"
+        ) from None
+
+
 def ray_map(
     fn: Callable[[Any], Any],
     items: Sequence[Any],
@@ -103,6 +156,8 @@ def ray_map(
         }
         if address is None and workers > 1:
             kwargs["num_cpus"] = workers
+        if address is not None:
+            check_reachable(address)
         try:
             ray.init(address=address, **kwargs)
         except (ConnectionError, RuntimeError, ValueError) as e:

@@ -14,7 +14,7 @@ class RuleChoosingPolicy:
     """A policy that first picks a rule for the deciding robot, then lets the rule pick.
 
     Subclasses override :meth:`select_rule`; this is the shape of the HDQN meta-controller.
-    The chosen rule's name is recorded on the decision.
+    The chosen rule's name is :attr:`last_rule` (the line counts decisions per rule by it).
     """
 
     name = "rule-choosing"
@@ -22,17 +22,19 @@ class RuleChoosingPolicy:
     def __init__(self) -> None:
         self.robots: list[RobotSpec] = []
         self.rng = np.random.default_rng(0)
+        self.last_rule: str | None = None
 
     def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
         self.robots = list(robots)
         self.rng = rng
+        self.last_rule = None
 
     def select_rule(self, decision: Decision) -> str:
         raise NotImplementedError
 
     def choose(self, decision: Decision) -> int:
         rule = self.select_rule(decision)
-        decision.rule = rule
+        self.last_rule = rule
         return RULES[rule](decision, self.rng)
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from policies.base import RuleMix
 from policies.rules import RULES
@@ -19,6 +19,18 @@ PREFIXED: dict[str, str] = {"hdqn": "policies.hdqn.policy:from_spec"}
 
 class PolicyError(UserError):
     """An unknown policy name or a malformed mix; the message is one line."""
+
+
+def rule_names(names: Sequence[str]) -> tuple[str, ...]:
+    """Upper-cased rule names, each a known rule: the one check of rule names (callers add
+    their field to the message). Raises ``ValueError`` naming the bad name and the rules."""
+    out = tuple(str(r).strip().upper() for r in names)
+    if not out:
+        raise ValueError(f"empty; give at least one of {', '.join(RULES)}")
+    for r in out:
+        if r not in RULES:
+            raise ValueError(f"'{r}' is not a rule; allowed {', '.join(RULES)}")
+    return out
 
 
 def allowed() -> str:

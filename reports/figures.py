@@ -8,6 +8,7 @@ No files, no simulation, no state. Every function returns a ``go.Figure`` styled
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -324,8 +325,9 @@ def sizing_figure(sizing: dict[str, Any]) -> go.Figure:
     return style(
         fig,
         "Sizing: gripping rate against " + param_label(param, False).lower(),
-        "Filled markers reach the target with the requested confidence · error bars: 95 % CI "
-        "· best policy at each point",
+        f"Target G ≥ {fmt_pct(number(target, math.nan))} with "
+        f"{100 * number(sizing.get('confidence'), 0.95):g} % confidence: filled markers reach it "
+        "· error bars: CI · best policy at each point",
     )
 
 
@@ -361,4 +363,80 @@ def mix_figure(mix: dict[str, Any], top: int = 15) -> go.Figure:
         f"Rule-mix ranking: the best {len(names)}",
         "Per-robot rules, upstream robot first · error bars: 95 % CI",
         height=max(320, 120 + 40 * len(names)),
+    )
+
+
+def layout_figure(sizing: dict[str, Any]) -> go.Figure:
+    """The belt and workspaces each robot count ran on (sizing.json's layout), the answer
+    highlighted: what ``--layout extend`` (longer belt) or ``share`` (narrower workspaces)
+    means on the floor."""
+    layout = sizing.get("layout") or {}
+    counts = sorted((layout.get("counts") or {}).items(), key=lambda kv: int(kv[0]))
+    answer = sizing.get("answer")
+    fig = go.Figure()
+    shapes: list[dict[str, Any]] = []
+    names = []
+    for row, (n, c) in enumerate(counts):
+        ws = float(c["workspace_length"])
+        name = f"{n} robots" + (" (answer)" if answer is not None and int(n) == answer else "")
+        names.append(name)
+        shapes.append(
+            {
+                "type": "rect",
+                "x0": 0,
+                "x1": float(c["belt_length"]),
+                "y0": row - 0.32,
+                "y1": row + 0.32,
+                "fillcolor": "#eef1f5",
+                "line": {"color": "#9aa5b1", "width": 1},
+                "layer": "below",
+            }
+        )
+        strong = answer is not None and int(n) == answer
+        for i, (a, b) in enumerate(c["workspaces"]):
+            color = PALETTE[i % len(PALETTE)]
+            shapes.append(
+                {
+                    "type": "rect",
+                    "x0": float(a),
+                    "x1": float(b),
+                    "y0": row - 0.22,
+                    "y1": row + 0.22,
+                    "fillcolor": rgba(color, 0.55 if strong else 0.25),
+                    "line": {"color": color, "width": 1},
+                }
+            )
+        fig.add_trace(
+            go.Scatter(
+                x=[float(c["belt_length"])],
+                y=[row],
+                mode="text",
+                text=[f" {float(c['belt_length']):g} m belt, {ws:.3g} m each"],
+                textposition="middle right",
+                hoverinfo="skip",
+                showlegend=False,
+            )
+        )
+    longest = max((float(c["belt_length"]) for _, c in counts), default=1.0)
+    fig.update_layout(shapes=shapes)
+    fig.update_xaxes(title="Along the belt, x (m)", range=[-0.05, longest * 1.45])
+    fig.update_yaxes(
+        tickvals=list(range(len(names))),
+        ticktext=names,
+        range=[-0.7, len(names) - 0.3],
+        autorange="reversed",
+        showgrid=False,
+        zeroline=False,
+    )
+    mode = str(layout.get("mode", "extend"))
+    what = (
+        "the belt is kept and shared by narrower workspaces"
+        if mode == "share"
+        else "each workspace keeps its length and the belt grows"
+    )
+    return style(
+        fig,
+        f"Layout: {mode}",
+        f"Workspaces (coloured, robot 1 upstream) on the belt (grey) per robot count: {what}",
+        height=max(260, 110 + 34 * len(names)),
     )

@@ -75,8 +75,16 @@ code { font-family:ui-monospace,SFMono-Regular,Menlo,Consolas,monospace; font-si
 .badge { display:inline-block; background:rgba(255,255,255,.16); border-radius:999px;
   padding:2px 10px; font-size:12px; margin-left:10px; vertical-align:middle; }
 footer { color:var(--muted); font-size:12.5px; padding:6px 0 40px; }
-@media print { body { background:#fff; } section { break-inside:avoid; border:none; }
-  header.top { -webkit-print-color-adjust:exact; print-color-adjust:exact; } }
+@media print {
+  body { background:#fff; } section { border:none; padding:8px 0; }
+  header.top { -webkit-print-color-adjust:exact; print-color-adjust:exact; }
+  nav.toc, .modebar-container, .updatemenu-container, .slider-container { display:none; }
+  /* every table row on paper: no scroll boxes, headers repeated on each page */
+  .scroll { max-height:none !important; overflow:visible !important; border:none; }
+  th { position:static; } thead { display:table-header-group; }
+  tr, .figure, .answer, .card { break-inside:avoid; }
+  td, th { white-space:normal; }
+}
 """
 
 

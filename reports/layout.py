@@ -19,8 +19,8 @@ from reports.text import (
     fmt_pm,
     fmt_seconds,
     fmt_value,
+    headline,
     key_findings,
-    mix_text,
     param_label,
     param_value,
     point_label,
@@ -30,6 +30,8 @@ from reports.text import (
 )
 
 TIMELINE_SECONDS = 20.0
+ANIMATION_SECONDS = 60.0  # the belt animation's window: a minute of the recorded run
+ANIMATION_STEP = 0.2  # s between frames
 MAX_POLICIES = 8  # one colour each in style.PALETTE
 KINDS = {"sweep": "Parameter sweep", "size": "Sizing study", "mix": "Rule-mix search"}
 
@@ -94,7 +96,8 @@ def cards(study: Study) -> list[tuple[str, str, str]]:
         )
     points = len(study.best) if study.best is not None else 1
     out.append(("Grid points", str(points), f"{len(study.varying)} parameter(s) varied"))
-    out.append(("Policies", str(len(study.policies)), ", ".join(study.policies)[:60]))
+    label = "Mixes" if study.mix is not None else "Policies"
+    out.append((label, str(len(study.policies)), shorten(", ".join(study.policies), 60)))
     runs = len(study.results) if study.results is not None else int(s.get("n", pd.Series()).sum())
     reps = study.meta.get("replications")
     out.append(("Runs", f"{runs:,}", f"{reps} replications each" if reps else ""))
@@ -108,6 +111,16 @@ def cards(study: Study) -> list[tuple[str, str, str]]:
         )
     )
     return out
+
+
+def shorten(text: str, limit: int) -> str:
+    """``text`` cut at the last ', ' (else space) before ``limit`` characters, with '…';
+    never in the middle of a name."""
+    if len(text) <= limit:
+        return text
+    cut = text.rfind(", ", 0, limit)
+    cut = cut if cut > 0 else text.rfind(" ", 0, limit)
+    return (text[:cut] if cut > 0 else text.split(" ")[0]) + " …"
 
 
 def when_text(stamp: Any) -> str:
@@ -132,7 +145,11 @@ def facts(study: Study) -> str:
     ]
     for path, values in study.grid.items():
         rows.append((esc(param_label(path)), esc(", ".join(fmt_value(v) for v in values))))
-    rows.append(("Policies", esc(", ".join(study.policies))))
+    if study.mix is not None and len(study.policies) > 12:
+        n = len(study.policies)
+        rows.append(("Policies", esc(f"{n} rule mixes, ranked in the table above")))
+    else:
+        rows.append(("Policies", esc(", ".join(study.policies))))
     line = [
         f"{scenario_value(scenario, 'robots.count')} robots",
         f"arm {fmt_value(scenario_value(scenario, 'robots.arm_speed'))} m/s",
@@ -230,37 +247,82 @@ def kpi_table(study: Study) -> str:
     return table_html(header, rows, left=0, classes=classes, scroll=len(rows) > 14)
 
 
-def answer_section(study: Study) -> Section | None:
-    if study.sizing is None:
-        return None
-    sentences = "".join(f"<p>{esc(t)}</p>" for t in sizing_text(study.sizing))
-    items: list[Any] = [f'<div class="answer">{sentences}</div>']
-    if study.sizing.get("rows"):
+def answer_section(study: Study) -> Section:
+    """The answer in one sentence first; for a sizing study the reasoning, the chart and the
+    layout the robots were given."""
+    sentences = [headline(study)]
+    if study.sizing is not None:
+        sentences += sizing_text(study.sizing)[1:]
+        layout = study.sizing.get("layout") or {}
+        if layout:
+            sentences.append(layout_sentence(study.sizing))
+    body = "".join(f"<p>{esc(t)}</p>" for t in sentences)
+    items: list[Any] = [f'<div class="answer">{body}</div>']
+    if study.sizing is not None and study.sizing.get("rows"):
         items.append(figures.sizing_figure(study.sizing))
-    return Section("answer", "The sizing answer", "", items)
+        if study.sizing.get("layout"):
+            items.append(figures.layout_figure(study.sizing))
+    return Section("answer", "The answer", "", items)
+
+
+def layout_sentence(sizing: dict[str, Any]) -> str:
+    """How the robots were laid out (extend the belt, or share it), as sizing.json says."""
+    layout = sizing.get("layout") or {}
+    return str(layout.get("text") or f"Layout: {layout.get('mode', 'extend')}.")
+
+
+def mix_table(study: Study) -> str:
+    """Every evaluated mix, ranked: one column per robot's rule, G with its CI, and the
+    paired difference to the best mix."""
+    assert study.mix is not None
+    ranked = study.mix.get("ranked") or []
+    n = max((len(str(r["mix"]).split(",")) for r in ranked), default=0)
+    paired = study.paired
+    diff: dict[str, tuple[float, float, float]] = {}
+    if paired is not None and not paired.empty:
+        for _, p in paired.iterrows():
+            diff[str(p["policy"])] = (p["diff_mean"], p["diff_ci_low"], p["diff_ci_high"])
+    rows = []
+    for i, r in enumerate(ranked, start=1):
+        d = diff.get(str(r["mix"]))
+        vs = "best" if i == 1 else "–"
+        if d is not None and i > 1:
+            vs = f"{d[0]:+.2f}" + (
+                f' <span class="pm">[{d[1]:+.2f}, {d[2]:+.2f}]</span>'
+                if math.isfinite(d[1])
+                else ""
+            )
+        rows.append(
+            [str(i)]
+            + [esc(rule) for rule in str(r["mix"]).split(",")]
+            + [
+                esc(fmt_pct(float(r["gripping_rate_mean"]), 2))
+                + f'<span class="pm">{esc(fmt_pm(r.get("ci_low"), r.get("ci_high"), 2))}</span>',
+                vs,
+            ]
+        )
+    header = ["Rank", *(f"Robot {k}" for k in range(1, n + 1))]
+    header += ["Gripping rate (%)", "− best, points (paired 95 % CI)"]
+    classes = ["best" if i == 0 else "" for i in range(len(rows))]
+    return table_html(header, rows, left=n + 1, classes=classes, scroll=len(rows) > 14)
 
 
 def mix_section(study: Study) -> Section | None:
     if study.mix is None:
         return None
-    items: list[Any] = [f'<div class="answer"><p>{esc(mix_text(study.mix))}</p></div>']
     ranked = study.mix.get("ranked") or []
+    items: list[Any] = []
     if ranked:
+        items.append(mix_table(study))
         items.append(figures.mix_figure(study.mix))
-        rows = [
-            [
-                str(i),
-                f"<code>{esc(r['mix'])}</code>",
-                esc(fmt_pct(float(r["gripping_rate_mean"]), 2)),
-                esc(fmt_pm(r.get("ci_low", math.nan), r.get("ci_high", math.nan), 2)),
-            ]
-            for i, r in enumerate(ranked[:10], start=1)
-        ]
-        items.append(
-            table_html(["Rank", "Rules, robot 1 first", "Gripping rate", "95 % CI"], rows, 2)
-        )
-    intro = "Per-robot dispatching rules, searched as Huang et al. did: the static baseline a "
-    intro += "learned policy has to beat."
+    m = study.mix
+    intro = (
+        f"{m.get('evaluated', len(ranked))} mixes evaluated ({m.get('method', 'search')}"
+        + (f", stopped: {m['stopped']}" if m.get("stopped") else "")
+        + "), ranked by mean gripping rate over the same replications (common random "
+        "numbers). Per-robot dispatching rules, searched as Huang et al. did: the static "
+        "baseline a learned policy has to beat."
+    )
     return Section("mix", "Rule-mix ranking", esc(intro), items)
 
 
@@ -317,8 +379,9 @@ def robots_section(study: Study) -> Section | None:
     if runs[runs["policy"] == policy].empty:
         return None
     fig = record_figures.robots_figure(results, point, policy)
-    intro = "Where each robot's time goes, and how many parts leave its workspace unpicked "
-    intro += "(missed by the line, or left to robots downstream)."
+    intro = "Where each robot's time goes, and what becomes of the parts it leaves: passed on "
+    intro += "(picked by a robot downstream) or lost (to the return conveyor). "
+    intro += "The line shown is the recommended one."
     return Section("robots", "Robots", esc(intro), [fig])
 
 
@@ -331,13 +394,16 @@ def records_section(study: Study) -> Section | None:
     t0 = warmup if duration - warmup >= 20 else max(0.0, duration - TIMELINE_SECONDS)
     t1 = min(t0 + TIMELINE_SECONDS, duration)
     n = int((scenario.get("robots") or {}).get("count") or 0) or int(
-        max(study.spans["robot"].max(), study.parts["robot"].max()) + 1
+        max(study.spans["robot"].max(), study.parts["robot"].max())  # numbered from 1
     )
     items: list[Any] = []
     if t1 > t0:
         items.append(record_figures.timeline_figure(study.parts, study.spans, t0, t1, n))
     if len(study.parts):
-        items.append(record_figures.belt_figure(study.parts, scenario, t0))
+        seconds = max(min(ANIMATION_SECONDS, duration - t0), ANIMATION_STEP)
+        items.append(
+            record_figures.belt_figure(study.parts, scenario, t0, seconds, ANIMATION_STEP)
+        )
     if not items:
         return None
     run = study.run
@@ -377,8 +443,10 @@ def build_page(study: Study) -> Page:
             "KPI summary",
             esc(
                 "Mean over replications with the 95 % confidence half-width; ★ marks the best "
-                "policy at each grid point. Efficiency: throughput over min(part flow, robot "
-                "capacity); utilisation: share of time moving, gripping or placing."
+                "policy at each grid point. Efficiency: throughput over min(part flow, the "
+                "robots' measured cycle rate, i.e. the sum of 1 / mean cycle time), so a "
+                "saturated line reads about 100 %; utilisation: share of time moving, gripping "
+                "or placing. Gripping rate, efficiency and utilisation in %."
             ),
             [kpi_table(study)],
         ),
@@ -387,10 +455,19 @@ def build_page(study: Study) -> Page:
     description = (study.meta.get("scenario") or {}).get("description") or ""
     finished = str(study.meta.get("finished_at") or "")[:10]
     versions = study.meta.get("versions") or {}
+    lead = esc(description)
+    if study.sizing is not None:  # the target this study used, whatever the description says
+        conf = 100 * float(study.sizing.get("confidence") or 0.95)
+        target = float(study.sizing.get("target") or math.nan)
+        mode = (study.sizing.get("layout") or {}).get("mode", "extend")
+        lead = esc(
+            f"Target used: gripping rate ≥ {target:g} % with {conf:g} % confidence · layout "
+            f"{mode} · scenario: {description}"
+        )
     return Page(
         title=f"{study.scenario_name}: {KINDS.get(kind, kind).lower()}",
         eyebrow=f"pnp-twin report<span class='badge'>{esc(kind)}</span>",
-        lead=esc(description) + (f" · {esc(finished)}" if finished else ""),
+        lead=lead + (f" · {esc(finished)}" if finished else ""),
         cards=cards(study),
         sections=[s for s in sections if s is not None],
         footer=esc(

@@ -46,7 +46,7 @@ def robots_figure(results: pd.DataFrame, point: dict[str, Any], policy: str) -> 
         cols=2,
         column_widths=[0.58, 0.42],
         horizontal_spacing=0.1,
-        subplot_titles=["Time share per robot", "Parts leaving each workspace unpicked"],
+        subplot_titles=["Time share per robot", "Parts each robot left: passed on or lost"],
     )
     columns = {"busy": "utilisation", "noop": "noop", "wait": "wait", "blocked": "blocked"}
     columns["down"] = "down"
@@ -65,23 +65,28 @@ def robots_figure(results: pd.DataFrame, point: dict[str, Any], policy: str) -> 
             row=1,
             col=1,
         )
-    passed = [float(runs[f"r{i}_missed"].mean()) for i in range(1, n + 1)]
+    passed = [float(runs[f"r{i}_passed_on"].mean()) for i in range(1, n + 1)]
+    lost = [float(runs[f"r{i}_lost"].mean()) for i in range(1, n + 1)]
     picks = [float(runs[f"r{i}_picks"].mean()) for i in range(1, n + 1)]
-    fig.add_trace(
-        go.Bar(
-            x=names,
-            y=passed,
-            name="Passed unpicked",
-            marker_color="#c0392b",
-            text=[f"{v:.0f}" for v in passed],
-            textposition="outside",
-            customdata=np.column_stack([picks]),
-            hovertemplate="%{x}: %{y:.1f} parts passed, %{customdata[0]:.0f} picked<extra></extra>",
-            showlegend=False,
-        ),
-        row=1,
-        col=2,
-    )
+    for label, values, color in (
+        ("Passed on (picked downstream)", passed, "#e9a03b"),
+        ("Lost (return conveyor)", lost, "#c0392b"),
+    ):
+        fig.add_trace(
+            go.Bar(
+                x=names,
+                y=values,
+                name=label,
+                marker_color=color,
+                customdata=np.column_stack([picks]),
+                hovertemplate="%{x}: %{y:.1f} parts "
+                + label.split(" (")[0].lower()
+                + ", %{customdata[0]:.0f} picked<extra></extra>",
+            ),
+            row=1,
+            col=2,
+        )
+    passed = [a + b for a, b in zip(passed, lost, strict=True)]
     fig.update_layout(barmode="stack")
     fig.update_yaxes(title="Share of the window (%)", ticksuffix=" %", range=[0, 101], row=1, col=1)
     fig.update_yaxes(title="Parts per run", rangemode="tozero", row=1, col=2)
@@ -89,7 +94,7 @@ def robots_figure(results: pd.DataFrame, point: dict[str, Any], policy: str) -> 
     reps = len(runs)
     where = point_label(point, list(point)) if point else "the baseline"
     subtitle = f"{policy} at {where} · mean of {reps} replication{'s' if reps != 1 else ''}"
-    fig = style(fig, "Robots: utilisation and missed parts", subtitle, height=450, top=110)
+    fig = style(fig, "Robots: utilisation, parts passed on and lost", subtitle, height=450, top=110)
     fig.update_layout(legend={"y": -0.18, "yanchor": "top", "x": 0, "xanchor": "left"})
     fig.update_layout(margin={"b": 90})
     return fig
@@ -150,7 +155,7 @@ def timeline_figure(
             continue
         fig.add_trace(
             go.Bar(
-                y=[names[i] for i in s["robot"]],
+                y=[names[i - 1] for i in s["robot"]],  # the records number robots from 1
                 x=s["end"] - s["start"],
                 base=s["start"],
                 orientation="h",
@@ -188,7 +193,7 @@ def belt_positions(parts: pd.DataFrame, belt_speed: float, t: float) -> dict[str
     return {
         "to be picked": on[picked & ~claimed],
         "claimed": on[claimed],
-        "missed": on[~picked],
+        "will be missed": on[~picked],
     }
 
 
@@ -196,7 +201,7 @@ def belt_traces(parts: pd.DataFrame, belt_speed: float, t: float) -> list[go.Sca
     """The three part markers traces of one instant (always three, maybe empty)."""
     out = []
     for cat, d in belt_positions(parts, belt_speed, t).items():
-        robot = d["robot"].astype("Float64").fillna(-1).astype(int) + 1
+        robot = d["robot"].astype("Float64").fillna(0).astype(int)  # from 1; 0: none
         out.append(
             go.Scatter(
                 x=d["x"],
@@ -210,7 +215,7 @@ def belt_traces(parts: pd.DataFrame, belt_speed: float, t: float) -> list[go.Sca
                 },
                 customdata=np.column_stack([d["part"], robot]),
                 hovertemplate="part %{customdata[0]}<br>x = %{x:.2f} m, y = %{y:.2f} m"
-                + ("<br>robot %{customdata[1]}" if cat != "missed" else "")
+                + ("<br>robot %{customdata[1]}" if cat != "will be missed" else "")
                 + "<extra>"
                 + cat
                 + "</extra>",

@@ -43,7 +43,7 @@ STATE_LABELS = {
 }
 
 
-PART_COLORS = {"to be picked": "#1f4e79", "claimed": "#2a9d8f", "missed": "#e63946"}
+PART_COLORS = {"to be picked": "#1f4e79", "claimed": "#2a9d8f", "will be missed": "#e63946"}
 
 
 def policy_colors(policies: Sequence[str]) -> dict[str, str]:

@@ -138,6 +138,10 @@ class LoggingPolicy:
         self.choices = []
         self.inner.reset(robots, rng)
 
+    @property
+    def last_rule(self) -> str | None:
+        return getattr(self.inner, "last_rule", None)
+
     def choose(self, decision: Decision) -> int:
         k = self.inner.choose(decision)
         v = decision.spec.belt_speed
@@ -171,7 +175,7 @@ def write_trace_file(path: Path, rows: Sequence[tuple[float, float]]) -> Path:
 
 
 def robot_intervals(result: RunResult, robot: int) -> list[tuple[float, float, str]]:
-    """A robot's busy cycles (decided_at..placed_at) and its noop/wait/down/interrupted spans.
+    """Robot ``robot``'s (from 1, as the tables) busy cycles and noop/wait/down/interrupted spans.
 
     Blocked spans are left out: a box change blocks the robot inside a busy cycle.
     """
@@ -220,7 +224,7 @@ def check_run(result: RunResult, choices: Sequence[Choice] | None = None) -> Non
     assert kpis["parts_presented"] == kpis["parts_picked"] + kpis["parts_missed"]
 
     # picks happen inside the picking robot's workspace, in time order, with exact timing
-    robot = picked["robot"].to_numpy(dtype=np.int64)
+    robot = picked["robot"].to_numpy(dtype=np.int64) - 1  # the tables number robots from 1
     xi = v * (picked["picked_at"].to_numpy() - picked["fed_at"].to_numpy())
     a = np.array([layout[r][0] for r in robot])
     b = np.array([layout[r][1] for r in robot])
@@ -231,7 +235,7 @@ def check_run(result: RunResult, choices: Sequence[Choice] | None = None) -> Non
     assert (place > pick).all()
     specs = {i: result_spec(result, i) for i in set(robot.tolist())}
     for (_, row), x in zip(picked.iterrows(), xi, strict=True):
-        s = specs[int(row["robot"])]
+        s = specs[int(row["robot"]) - 1]
         dist = float(np.hypot(s["bin"][0] - x, s["bin"][1] - row["y"]))
         expected = (
             row["picked_at"]
@@ -245,7 +249,7 @@ def check_run(result: RunResult, choices: Sequence[Choice] | None = None) -> Non
     # a robot is in one state at a time: its cycles and spans never overlap
     assert (spans["end"] > spans["start"]).all()
     for r in range(sc.robots.count):
-        iv = robot_intervals(result, r)
+        iv = robot_intervals(result, r + 1)
         for (s0, e0, k0), (s1, e1, k1) in zip(iv, iv[1:], strict=False):
             assert s1 >= e0 - EPS, f"robot {r}: {k0} [{s0}, {e0}] overlaps {k1} [{s1}, {e1}]"
 
@@ -257,19 +261,19 @@ def check_choices(result: RunResult, choices: Sequence[Choice]) -> None:
     """Each completed pick is one logged choice; no decision offers a part already taken."""
     picked = result.parts[result.parts["outcome"] == "picked"]
     done = {
-        int(p): (int(r), float(d), float(t))
+        int(p): (int(r) - 1, float(d), float(t))  # 0-based, as Decision.robot
         for p, r, d, t in zip(
             picked["part"], picked["robot"], picked["decided_at"], picked["picked_at"], strict=True
         )
     }
     spans = result.spans
     cut = {
-        (int(r), float(t))
+        (int(r) - 1, float(t))
         for r, t, k in zip(spans["robot"], spans["start"], spans["state"], strict=True)
         if k == "interrupted"
     }
     noop_at = {
-        (int(r), float(t))
+        (int(r) - 1, float(t))
         for r, t, k in zip(spans["robot"], spans["start"], spans["state"], strict=True)
         if k == "noop"
     }

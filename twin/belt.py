@@ -1,11 +1,19 @@
-"""The belt: the parts on it, their analytic positions, claims and outcomes."""
+"""The belt: the parts on it, their analytic positions, claims, grips and exits."""
 
 from __future__ import annotations
 
 import math
 from bisect import bisect_left, bisect_right
+from collections.abc import Generator
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import simpy
+
+from twin.geometry import exit_time
+
+if TYPE_CHECKING:
+    from twin.records import Recorder
 
 FREE = -1
 
@@ -13,17 +21,31 @@ FREE = -1
 class Belt:
     """Parts on a conveyor moving at ``speed``; part i is at x = speed * (t - fed[i]).
 
-    Parts are indexed in feeding order, so positions decrease with the index and the parts
-    inside any stretch [x_lo, x_hi] of the belt form one index range (found by bisection).
-    ``holder[i]`` is the robot that claimed or picked part i, or FREE; ``left_at[i]`` the
-    time a claimed part is (or will be) gripped and leaves the belt.
+    The feeder's whole stream is known up front (:meth:`load`: ``fed`` holds every arrival
+    time, so a robot in a NooP knows when the next part comes), but a part is *on* the belt
+    only once the feeder has put it there (:meth:`put`): queries never look past
+    :attr:`arrived`. Parts are indexed in feeding order, so positions decrease with the
+    index and the parts inside any stretch [x_lo, x_hi] form one index range (bisection).
+
+    Robots go through :meth:`claim` (which also books the grip) and :meth:`release`. ``holder[i]`` is the
+    robot that claimed or picked part i, or FREE; ``left_at[i]`` the time a claimed part is
+    (or will be) gripped and leaves the belt. A part not gripped when it passes ``end`` (the
+    end of the last workspace) is missed: the process :meth:`conveying` records it.
     """
 
-    def __init__(self, length: float, width: float, speed: float, grid: tuple[int, int]) -> None:
+    def __init__(
+        self,
+        length: float,
+        width: float,
+        speed: float,
+        grid: tuple[int, int],
+        end: float | None = None,
+    ) -> None:
         self.length = length
         self.width = width
         self.speed = speed
         self.grid = grid
+        self.end = length if end is None else end
         self.cell = length / grid[0]
         self.tick = self.cell / speed  # time the belt needs to move one grid cell
         self.fed: list[float] = []
@@ -31,27 +53,75 @@ class Belt:
         self.kind: list[str] | None = None
         self.holder: list[int] = []
         self.left_at: list[float] = []  # grip time of a claimed part, inf while on the belt
+        self.arrived = 0  # parts the feeder has put on the belt so far
 
     def load(self, fed: np.ndarray, y: np.ndarray, kind: list[str] | None = None) -> None:
-        """Put the feeder's stream on the belt (each part appears at its fed time)."""
+        """Announce the feeder's stream (each part is put on the belt at its fed time)."""
         self.fed = fed.tolist()
         self.y = y.tolist()
         self.kind = kind
         self.holder = [FREE] * len(self.fed)
         self.left_at = [math.inf] * len(self.fed)
+        self.arrived = 0
 
     def __len__(self) -> int:
         return len(self.fed)
 
+    # -- the feeder, the robots ---------------------------------------------------------------
+    def put(self, upto: int) -> None:
+        """The feeder has put parts [arrived, upto) on the belt at x = 0."""
+        self.arrived = upto
+
+    def claim(self, part: int, robot: int, grip_at: float) -> None:
+        """``robot`` claims ``part``, to grip it at ``grip_at``: from then on the part is off
+        the belt, unless the claim is released before (the grip itself needs no call)."""
+        self.holder[part] = robot
+        self.left_at[part] = grip_at
+
+    def release(self, part: int) -> None:
+        """A claim given up before the grip (t_any): the part is free again."""
+        self.holder[part] = FREE
+        self.left_at[part] = math.inf
+
+    def exit_at(self, part: int) -> float:
+        """When ``part`` passes the end of the last workspace (picked or not)."""
+        return exit_time(self.fed[part], self.end, self.speed)
+
+    def passed(self, now: float) -> int:
+        """How many parts (the first ones fed) have passed the last workspace's end by now."""
+        return bisect_right(self.fed, now - self.end / self.speed)
+
+    def conveying(
+        self, env: simpy.Environment, recorder: Recorder
+    ) -> Generator[simpy.Event, Any, None]:
+        """The belt's process: record each part that passes the end unpicked as missed.
+
+        It takes the parts in feeding order and sleeps until the exit of each one not yet
+        gripped, so it wakes about once per missed part, not once per part. A part still
+        claimed at its exit is gripped there (to rounding): only free parts are missed.
+        """
+        left_at, holder = self.left_at, self.holder
+        for i in range(len(self.fed)):
+            if left_at[i] > env.now:  # not gripped yet
+                at = self.exit_at(i)
+                if at > env.now:
+                    yield env.timeout(at - env.now)
+                if holder[i] == FREE:
+                    recorder.missed(i, at)
+
+    # -- what robots and cameras see ----------------------------------------------------------
     def span(self, now: float, x_lo: float, x_hi: float) -> range:
-        """Indices of the parts fed by ``now`` with x in [x_lo, x_hi] at ``now``."""
+        """Indices of the parts on the belt at ``now`` with x in [x_lo, x_hi]."""
         v = self.speed
         lo = bisect_left(self.fed, now - x_hi / v)
         hi = bisect_right(self.fed, now - max(x_lo, 0.0) / v)
-        return range(lo, hi)
+        return range(lo, min(hi, self.arrived))
 
     def next_entry(self, now: float, x: float) -> float:
-        """Time until the next unclaimed part upstream of ``x`` reaches it (inf if none)."""
+        """Time until the next unclaimed part upstream of ``x`` reaches it (inf if none).
+
+        Parts the feeder has not put on the belt yet count: its schedule is known.
+        """
         v = self.speed
         fed, holder = self.fed, self.holder
         lag = x / v
@@ -63,6 +133,12 @@ class Belt:
         if i >= n:
             return math.inf
         return fed[i] + lag - now
+
+    def on_belt(self, now: float) -> range:
+        """Indices that may be on the belt at ``now`` (fed, not past its length); a part in
+        it is still on the belt when ``left_at[i] > now`` (not gripped yet)."""
+        lo = bisect_left(self.fed, now - self.length / self.speed)
+        return range(lo, min(bisect_right(self.fed, now), self.arrived))
 
     def image(
         self,

@@ -22,21 +22,23 @@ so agents can share one network); columns beyond the belt's end read 0.
 from __future__ import annotations
 
 import math
-from bisect import bisect_left, bisect_right
-from typing import TYPE_CHECKING
+from collections.abc import Collection
 
 import numpy as np
 
+from twin.belt import Belt
 from twin.scenario import Scenario
-
-if TYPE_CHECKING:
-    from twin.line import Line
 
 CHANNELS = ("parts", "claimed", "busy")
 
 
 class BeltCamera:
-    """Draws the belt image of one line at its current time, with numpy."""
+    """Draws the image of one belt at a given time, with numpy.
+
+    :meth:`attach` points it at a loaded :class:`~twin.belt.Belt`; :meth:`belt` and
+    :meth:`window` draw it at time ``now``, with ``free`` the robots that are free then
+    (the busy channel marks the others' workspaces).
+    """
 
     def __init__(self, scenario: Scenario, channels: int = 1) -> None:
         if not 1 <= channels <= len(CHANNELS):
@@ -55,8 +57,7 @@ class BeltCamera:
         self.window_width = max(e - s for s, e in zip(self.starts, ends, strict=True))
         self.spans = [(s, min(e, self.nx)) for s, e in zip(self.starts, ends, strict=True)]
         self.padded = max(self.nx, max(self.starts) + self.window_width)
-        self.line: Line | None = None
-        self._fed: list[float] = []
+        self.source: Belt | None = None
         self._rows: list[int] = []
         self._cache: np.ndarray | None = None
         self._cache_key: tuple[float, int] = (math.nan, -1)
@@ -71,42 +72,30 @@ class BeltCamera:
         """Shape of a robot's window (C, H, w)."""
         return (self.channels, self.ny, self.window_width)
 
-    def attach(self, line: Line) -> None:
-        """Point the camera at a freshly built line (precomputes each part's row)."""
-        self.line = line
-        belt = line.belt
-        self._fed = belt.fed
+    def attach(self, belt: Belt) -> None:
+        """Point the camera at a belt with its stream loaded (precomputes each part's row)."""
+        self.source = belt
         rows = (np.asarray(belt.y, dtype=np.float64) * (self.ny / self.width)).astype(np.intp)
         self._rows = (np.minimum(rows, self.ny - 1) * self.padded).tolist()
         self._cache = None
         self._cache_key = (math.nan, -1)
 
-    def _image(self) -> np.ndarray:
-        """The padded image (C, H, padded W) now, computed once per epoch."""
-        line = self.line
-        assert line is not None, "BeltCamera.attach() first"
-        now = line.env.now
-        key = (now, line.gateway.epochs)
-        if self._cache is None or key != self._cache_key:
-            self._cache, self._cache_key = self._draw(line, now), key
-        return self._cache
-
-    def _draw(self, line: Line, now: float) -> np.ndarray:
+    def _draw(self, now: float, free: Collection[int]) -> np.ndarray:
+        """The padded image (C, H, padded W) at ``now``."""
+        belt = self.source
+        assert belt is not None, "BeltCamera.attach(belt) first"
         # About 30 parts lie on a paper_baseline belt: a plain loop into a bytearray beats
         # numpy's per-call overheads here.
         c, ny, width = self.channels, self.ny, self.padded
         plane = ny * width
         buf = bytearray(c * plane)
-        fed = self._fed
-        lo = bisect_left(fed, now - self.length / self.speed)
-        hi = bisect_right(fed, now)
-        if hi > lo:
-            belt = line.belt
-            left_at, holder, rows = belt.left_at, belt.holder, self._rows
+        on = belt.on_belt(now)
+        if len(on):
+            fed, left_at, holder, rows = belt.fed, belt.left_at, belt.holder, self._rows
             v, scale, last = self.speed, self.nx / self.length, self.nx - 1
             claimed = c > 1
-            for i in range(lo, hi):
-                if left_at[i] > now:
+            for i in on:
+                if left_at[i] > now:  # not gripped yet
                     col = int(v * (now - fed[i]) * scale)  # as Belt.image rounds
                     flat = rows[i] + (col if col < last else last)
                     buf[flat] = 1
@@ -114,20 +103,24 @@ class BeltCamera:
                         buf[plane + flat] = 1
         out = np.frombuffer(buf, dtype=np.uint8).reshape(c, ny, width)
         if c > 2:
-            free = line.gateway.pending
             for robot, (s, e) in enumerate(self.spans):
                 if robot not in free:
                     out[2, :, s:e] = 1
         return out
 
-    def belt(self) -> np.ndarray:
-        """The whole belt, (C, H, W) uint8 (a fresh array on every call)."""
-        line = self.line
-        assert line is not None, "BeltCamera.attach() first"
-        image = self._draw(line, line.env.now)
+    def belt(self, now: float, free: Collection[int] = ()) -> np.ndarray:
+        """The whole belt at ``now``, (C, H, W) uint8 (a fresh array on every call)."""
+        image = self._draw(now, free)
         return image if self.padded == self.nx else image[:, :, : self.nx].copy()
 
-    def window(self, robot: int) -> np.ndarray:
-        """Robot ``robot``'s (0-based) workspace window, (C, H, w) uint8 (a fresh array)."""
+    def window(
+        self, robot: int, now: float, free: Collection[int] = (), epoch: int = 0
+    ) -> np.ndarray:
+        """Robot ``robot``'s (0-based) workspace window at ``now``, (C, H, w) uint8 (a fresh
+        array). The image is drawn once per (``now``, ``epoch``) and shared by the windows
+        of that epoch: give a new ``epoch`` whenever claims may have changed."""
+        key = (now, epoch)
+        if self._cache is None or key != self._cache_key:
+            self._cache, self._cache_key = self._draw(now, free), key
         s = self.starts[robot]
-        return self._image()[:, :, s : s + self.window_width].copy()
+        return self._cache[:, :, s : s + self.window_width].copy()

@@ -1,7 +1,9 @@
 """The decision record the gateway hands to a policy, and the policy protocol.
 
 The twin never imports a policy: it builds a :class:`Decision` (plain data) whenever a free
-robot has candidates and asks the policy object for the index of the part to pick.
+robot has candidates and asks the policy object for the index of the part to pick. A policy
+that chooses by a named rule says which in a ``last_rule`` attribute (read right after
+``choose``); the KPIs count decisions per rule, "?" for policies without one.
 """
 
 from __future__ import annotations
@@ -33,11 +35,11 @@ class Decision:
 
     Candidates are listed furthest downstream first (the order they entered the
     workspace). ``xs``/``ys`` are the parts' positions now, ``times`` the interception
-    times from the tool position ``tool``. A policy may set ``rule`` to name the rule that
-    made the choice (counted in the KPIs as decisions per rule).
+    times from the tool position ``tool``. A decision is read only: the answer is the index
+    ``choose`` returns.
     """
 
-    __slots__ = ("robot", "spec", "time", "tool", "parts", "xs", "ys", "times", "rule")
+    __slots__ = ("robot", "spec", "time", "tool", "parts", "xs", "ys", "times")
 
     def __init__(
         self,
@@ -57,7 +59,6 @@ class Decision:
         self.xs = xs
         self.ys = ys
         self.times = times
-        self.rule: str | None = None
 
     def __len__(self) -> int:
         return len(self.parts)
@@ -65,13 +66,15 @@ class Decision:
     def __repr__(self) -> str:
         return (
             f"Decision(robot={self.robot}, time={self.time:.4f}, "
-            f"candidates={len(self.parts)}, rule={self.rule})"
+            f"candidates={len(self.parts)})"
         )
 
 
 @runtime_checkable
 class Policy(Protocol):
-    """Anything with ``reset`` and ``choose`` can drive the line."""
+    """Anything with ``reset`` and ``choose`` can drive the line (optionally ``last_rule``:
+    the name of the rule behind the last choice; and ``attach(belt)``, called once the
+    line's belt is loaded, for policies that look at the belt)."""
 
     def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
         """Called once before a run with the robots and the run's policy stream."""

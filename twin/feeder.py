@@ -1,27 +1,33 @@
 """The feeder: the stream of parts put on the belt at x = 0.
 
-Part positions are analytic (x = v_b (t - fed_at)), so feeding a part needs no event: the
-feeder draws its whole arrival stream when the run starts, from its own random streams.
-Every policy therefore sees exactly the same parts for the same seed (common random
-numbers), and the stream costs no simulation events.
+The feeder draws its whole arrival stream when the run starts, from its own random streams,
+so every policy sees exactly the same parts for the same seed (common random numbers).
+Its process :meth:`Feeder.feeding` then puts each part on the belt at its arrival time;
+part positions on the belt are analytic (x = v_b (t - fed_at)).
 """
 
 from __future__ import annotations
 
-import csv
 import logging
+import math
+from collections.abc import Generator
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import simpy
+from simpy.events import URGENT
 
-from twin.errors import UserError
-from twin.scenario import FeederConfig
+from twin.scenario import FeederConfig, Scenario
+from twin.trace import TraceError, read_trace  # noqa: F401  (read here, kept importable)
+
+if TYPE_CHECKING:
+    from twin.belt import Belt
 
 log = logging.getLogger(__name__)
 
-
-class TraceError(UserError):
-    """A trace file that cannot be replayed; the message is one line."""
+PartStream = tuple[np.ndarray, np.ndarray, "list[str] | None"]
+"""(fed_at, y, kind or None) of every part of a run, time-ordered."""
 
 
 class Feeder:
@@ -51,6 +57,33 @@ class Feeder:
         else:
             times = self._gaps(duration)
         return times, self._lateral(len(times)), None
+
+    @classmethod
+    def seeded(cls, scenario: Scenario, seed: int) -> Feeder:
+        """The feeder of a run of ``scenario`` with master ``seed`` (its first two child
+        streams, as :class:`twin.line.Line` spawns them)."""
+        arrivals, lateral = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+        return cls(scenario.feeder, scenario.belt.width, arrivals, lateral, scenario.source_dir)
+
+    def feeding(self, env: simpy.Environment, belt: Belt) -> Generator[simpy.Event, Any, None]:
+        """The feeder's process: put each part of the belt's stream on it at its arrival.
+
+        One process for the whole stream, sleeping until the next arrival. It wakes at the
+        exact arrival instant and before any other event of that instant, so a robot that
+        decides then sees the part (as if it had always been there).
+        """
+        fed = belt.fed
+        i, n = 0, len(fed)
+        while i < n:
+            at = fed[i]
+            if at > env.now:
+                yield _Arrival(env, at)
+            now = env.now
+            j = i + 1
+            while j < n and fed[j] <= now:  # parts arriving together
+                j += 1
+            belt.put(j)
+            i = j
 
     def _gaps(self, duration: float) -> np.ndarray:
         c, rng = self.config, self.arrivals_rng
@@ -91,26 +124,33 @@ class Feeder:
         return times[keep], ys[keep], kept_kinds
 
 
-def read_trace(path: Path, width: float) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
-    """Read a recorded trace CSV with columns time, y[, kind]."""
-    try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.DictReader(fh))
-    except OSError as e:
-        raise TraceError(f"feeder.trace: cannot read '{path}': {e.strerror}") from None
-    if not rows or not {"time", "y"} <= set(rows[0]):
-        raise TraceError(f"feeder.trace: '{path}' needs a header with columns time, y[, kind]")
-    try:
-        times = np.array([float(r["time"]) for r in rows])
-        ys = np.array([float(r["y"]) for r in rows])
-    except (TypeError, ValueError):
-        raise TraceError(f"feeder.trace: '{path}' has a non-numeric time or y") from None
-    if (np.diff(times) < 0).any() or (times < 0).any():
-        raise TraceError(f"feeder.trace: '{path}' times must be >= 0 and non-decreasing")
-    if ((ys < 0) | (ys > width)).any():
-        raise TraceError(f"feeder.trace: '{path}' has y outside the belt (0..{width} m)")
-    kinds = [r.get("kind") or "" for r in rows] if "kind" in rows[0] else None
-    return times, ys, kinds
+class _Arrival(simpy.Event):
+    """A timeout that fires at the absolute time ``at`` (never before it), ahead of every
+    other event of that instant: URGENT priority, initialised as :class:`simpy.Timeout`."""
+
+    def __init__(self, env: simpy.Environment, at: float) -> None:
+        self.env = env
+        self.callbacks = []
+        self._value = None
+        self._ok = True
+        now = env.now
+        delay = at - now
+        # now + (at - now) can miss ``at`` by a unit in the last place: step onto it
+        while now + delay < at:
+            delay = math.nextafter(delay, math.inf)
+        while now + delay > at:
+            shorter = math.nextafter(delay, 0.0)
+            if now + shorter < at:
+                break
+            delay = shorter
+        env.schedule(self, URGENT, delay)
+
+
+def resampled(scenario: Scenario, seed: int, other: int, at: float, duration: float) -> PartStream:
+    """The stream of ``seed`` up to ``at``, then ``other``'s: a sampled future for rollouts
+    (``Line(parts=...)``); both fed for ``duration`` s."""
+    now = Feeder.seeded(scenario, seed).stream(duration)
+    return splice(now, Feeder.seeded(scenario, other).stream(duration), at)
 
 
 def splice(

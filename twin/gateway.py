@@ -17,17 +17,25 @@ has set the policy's answer. Without it, decisions cost no extra event under t_c
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import simpy
 
 from twin.decision import Decision, Policy
 from twin.records import Recorder
 
-if TYPE_CHECKING:
-    from twin.robot import Robot
-
 SCHEMES = ("t_continue", "t_all", "t_any")
+
+
+class Station(Protocol):
+    """What the gateway sees of a robot (:class:`twin.robot.Robot` is one)."""
+
+    index: int  # 0-based, upstream first
+    down: bool  # broken down: not expected at a decision epoch
+
+    def interrupt_approach(self) -> bool:
+        """Stop an approach leg under way now (t_any); False when not approaching."""
+        ...
 
 
 class Gateway:
@@ -48,14 +56,20 @@ class Gateway:
         self.policy = policy
         self.recorder = recorder
         self.hold = hold
-        self.robots: list[Robot] = []
+        self.robots: list[Station] = []
         self.waiting: dict[int, simpy.Event] = {}  # robot index -> its release event
         self.expected: set[int] = set()  # t_any: robots the open epoch waits for
         self.pending: list[int] = []  # robots of the epoch the driver must answer
         self.epochs = 0
 
+    @property
+    def decides_at_once(self) -> bool:
+        """True when a free robot never waits for an epoch (t_continue without hold), so it
+        need not report :meth:`free` at all."""
+        return self.scheme == "t_continue" and not self.hold
+
     # -- called by robots --------------------------------------------------------------------
-    def free(self, robot: Robot) -> simpy.Event | None:
+    def free(self, robot: Station) -> simpy.Event | None:
         """A robot is free: None to decide now, or an event to wait for."""
         if self.scheme == "t_continue" and not self.hold:
             return None
@@ -69,22 +83,27 @@ class Gateway:
             self._join_any(robot)
         return event
 
-    def choose(self, robot: Robot, decision: Decision) -> int:
-        k = self.policy.choose(decision)
+    def choose(self, robot: Station, decision: Decision) -> tuple[int, str | None]:
+        """The policy's answer: (index of the candidate, name of the rule behind it or None).
+
+        A policy names its rule with a ``last_rule`` attribute (see :mod:`twin.decision`).
+        """
+        policy = self.policy
+        k = policy.choose(decision)
         if k < 0 or k >= len(decision.parts):
             raise IndexError(
-                f"policy {type(self.policy).__name__} chose candidate {k} of "
+                f"policy {type(policy).__name__} chose candidate {k} of "
                 f"{len(decision.parts)} for robot {robot.index}"
             )
-        key = (robot.index, decision.rule or "?")
-        counts = self.recorder.decisions
-        counts[key] = counts.get(key, 0) + 1
-        return k
+        rule = getattr(policy, "last_rule", None)
+        self.recorder.decided(robot.index, rule or "?")
+        return k, rule
 
-    def noop(self, robot: Robot) -> None:
-        self.recorder.decisions[(robot.index, "NooP")] += 1
+    def noop(self, robot: Station) -> None:
+        """A robot found no candidate and takes a NooP."""
+        self.recorder.noop(robot.index)
 
-    def down(self, robot: Robot) -> None:
+    def down(self, robot: Station) -> None:
         """A robot broke down: under t_all the others must not wait for it."""
         self.waiting.pop(robot.index, None)
         self.expected.discard(robot.index)
@@ -99,14 +118,11 @@ class Gateway:
         if available and all(i in self.waiting for i in available):
             self._open(available)
 
-    def _join_any(self, robot: Robot) -> None:
+    def _join_any(self, robot: Station) -> None:
         if not self.expected:
-            now = self.env.now
             self.expected = {robot.index}
             for other in self.robots:
-                if other is not robot and other.claimed >= 0 and other.approach_until > now:
-                    assert other.process is not None
-                    other.process.interrupt("t_any")
+                if other is not robot and other.interrupt_approach():
                     self.expected.add(other.index)
         else:
             self.expected.add(robot.index)

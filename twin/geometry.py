@@ -1,8 +1,57 @@
-"""Tool moves: straight-line move times and the interception of a part on the moving belt."""
+"""Line geometry: the workspace and bin layout, tool move times, and the interception of a
+part on the moving belt. The only copy of these formulas: the twin, the policies and the
+reports all call them.
+"""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+
+
+def workspaces(
+    count: int,
+    first_start: float,
+    length: float,
+    gap: float,
+    explicit: Sequence[Sequence[float]] | None = None,
+) -> list[tuple[float, float]]:
+    """Workspace bounds [a_i, b_i] in m, upstream first: ``explicit`` ones, or ``count``
+    back to back from ``first_start``, each ``length`` long, ``gap`` apart."""
+    if explicit is not None:
+        return [(float(a), float(b)) for a, b in explicit]
+    a = first_start
+    out = []
+    for _ in range(count):
+        out.append((a, a + length))
+        a += length + gap
+    return out
+
+
+def bin_position(
+    workspace: tuple[float, float], belt_width: float, offset: Sequence[float]
+) -> tuple[float, float]:
+    """A robot's place target: ``offset`` (dx, dy) from (workspace centre, upper belt edge)."""
+    a, b = workspace
+    dx, dy = offset
+    return ((a + b) / 2.0 + dx, belt_width + dy)
+
+
+def exit_time(fed_at: float, end: float, speed: float) -> float:
+    """When a part fed at ``fed_at`` passes x = ``end`` (the end of the last workspace)."""
+    return fed_at + end / speed
+
+
+def intercept_quad(arm_speed: float, belt_speed: float) -> float:
+    """v_r^2 - v_b^2, the leading coefficient of the interception quadratic."""
+    return arm_speed**2 - belt_speed**2
+
+
+def intercept_now(dx: float, dy: float, belt_speed: float, quad: float) -> float:
+    """Closed-form interception time without an acceleration limit (``quad`` from
+    :func:`intercept_quad`): the root T >= 0 of (dx + v_b T)^2 + dy^2 = (v_r T)^2."""
+    v = belt_speed
+    return (dx * v + math.sqrt(dx * dx * (v * v) + quad * (dx * dx + dy * dy))) / quad
 
 
 def move_time(distance: float, speed: float, acceleration: float = 0.0) -> float:

@@ -4,9 +4,18 @@ The window is [warm-up, duration): a part counts if it was fed in it, and the ru
 every such part has an outcome. Time-based figures (utilisation, NooP, down time) are the
 robots' state spans clipped to the same window.
 
-Efficiency is throughput over ``max_throughput`` = min(part flow presented, robot capacity),
-where a robot's capacity is 1 / its shortest possible cycle: pick + place + a round trip
-between its bin and the nearest point of the belt (the upper edge below the bin) at arm speed.
+Robots are numbered from 1 in the record tables, as everywhere a person reads them.
+
+Efficiency is throughput over ``max_throughput`` = min(part flow presented, the robots'
+measured cycle rate), where a robot's cycle rate is 1 / its mean measured cycle time (decision
+to end of release, over its picks in the window): a line whose robots are never idle reads
+about 100 %. A robot without a pick in the window counts at its ``nominal_capacity``, 1 / its
+shortest possible cycle: pick + place + a round trip between its bin and the nearest point of
+the belt (the upper edge below the bin) at arm speed.
+
+Parts a robot did not pick are split into ``passed_on`` (left its workspace unpicked and were
+picked by a robot downstream) and ``lost`` (left its workspace unpicked and reached the return
+conveyor: the line's ``parts_missed``).
 """
 
 from __future__ import annotations
@@ -52,10 +61,10 @@ def state_times(
     picked = parts[parts["outcome"] == "picked"]
     if len(picked):
         busy = clipped(picked["decided_at"], picked["placed_at"], w0, w1)
-        np.add.at(out[:, 0], picked["robot"].to_numpy(dtype=np.int64), busy)
+        np.add.at(out[:, 0], picked["robot"].to_numpy(dtype=np.int64) - 1, busy)
     if len(spans):
         lengths = clipped(spans["start"], spans["end"], w0, w1)
-        rob = spans["robot"].to_numpy(dtype=np.int64)
+        rob = spans["robot"].to_numpy(dtype=np.int64) - 1
         for j, state in enumerate(STATES):
             mask = (spans["state"] == ("interrupted" if state == "busy" else state)).to_numpy()
             np.add.at(out[:, j], rob[mask], lengths[mask])
@@ -79,19 +88,26 @@ def compute_kpis(
     presented = len(win)
     is_picked = (win["outcome"] == "picked").to_numpy()
     picked = int(is_picked.sum())
-    robot_of = win["robot"].to_numpy(dtype=float, na_value=np.nan)
+    robot_of = win["robot"].to_numpy(dtype=float, na_value=np.nan) - 1  # 0-based here
     picks = np.bincount(robot_of[is_picked].astype(np.int64), minlength=n)[:n]
     states = state_times(parts, spans, n, w0, w1)
-    caps = np.array([robot_capacity(s) for s in specs])
+    nominal = np.array([robot_capacity(s) for s in specs])
+    cycle_all = (win["placed_at"] - win["decided_at"]).to_numpy()
+    mean_cycle = np.array(
+        [
+            float(c.mean()) if len(c := cycle_all[is_picked & (robot_of == i)]) else math.nan
+            for i in range(n)
+        ]
+    )
+    caps = np.where(mean_cycle > 0, 1.0 / np.where(mean_cycle > 0, mean_cycle, 1.0), nominal)
     flow = presented / span
     max_tp = min(flow, float(caps.sum()))
     tp = picked / span
-    cycles = (win["placed_at"] - win["decided_at"]).to_numpy()[is_picked]
+    cycles = cycle_all[is_picked]
+    lost = int(np.sum(~is_picked))
     robots = []
     for i in range(n):
-        # parts that left workspace i unpicked: missed, or picked further downstream
-        passed = int(np.sum(~is_picked) + np.sum(robot_of[is_picked] > i))
-        mine = (win["placed_at"] - win["decided_at"]).to_numpy()[is_picked & (robot_of == i)]
+        mine = cycle_all[is_picked & (robot_of == i)]
         robots.append(
             {
                 "robot": i + 1,
@@ -104,9 +120,11 @@ def compute_kpis(
                 "blocked": float(states[i, 3] / span),
                 "down": float(states[i, 4] / span),
                 "availability": float(1.0 - states[i, 4] / span),
-                "missed": passed,
+                "passed_on": int(np.sum(robot_of[is_picked] > i)),
+                "lost": lost,
                 "cycle_time_mean": float(mine.mean()) if len(mine) else math.nan,
                 "capacity": float(caps[i]),
+                "nominal_capacity": float(nominal[i]),
             }
         )
     noops = spans[(spans["state"] == "noop") & (spans["start"] >= w0) & (spans["start"] < w1)]
@@ -116,7 +134,7 @@ def compute_kpis(
         "gripping_rate": 100.0 * picked / presented if presented else math.nan,
         "parts_presented": presented,
         "parts_picked": picked,
-        "parts_missed": presented - picked,
+        "parts_missed": presented - picked,  # lost to the return conveyor
         "throughput": tp,
         "part_flow": flow,
         "max_throughput": max_tp,

@@ -1,4 +1,9 @@
-"""The line: a scenario turned into a SimPy model (belt, feeder, robots, bins, gateway)."""
+"""The line: a scenario turned into a SimPy model (belt, feeder, robots, bins, gateway).
+
+Processes: the feeder puts parts on the belt (:meth:`Feeder.feeding`), the belt records the
+parts it carries past the last workspace (:meth:`Belt.conveying`), each robot works its
+cycle (:meth:`Robot.working`) and each bin changes full boxes (:meth:`Bin.changing_box`).
+"""
 
 from __future__ import annotations
 
@@ -10,10 +15,11 @@ import simpy
 from twin.belt import Belt
 from twin.bin import Bin
 from twin.decision import Policy, RobotSpec
-from twin.feeder import Feeder, splice
+from twin.feeder import Feeder, PartStream
 from twin.gateway import Gateway
+from twin.geometry import bin_position
 from twin.records import Recorder
-from twin.robot import Robot
+from twin.robot import Failures, Robot
 from twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -27,13 +33,12 @@ def robot_specs(scenario: Scenario) -> list[RobotSpec]:
     belt = scenario.belt
     for i, (a, b) in enumerate(scenario.robots.layout()):
         p = lambda name, i=i: scenario.robot_param(i + 1, name)  # noqa: E731
-        dx, dy = p("bin_offset")
         out.append(
             RobotSpec(
                 index=i,
                 count=scenario.robots.count,
                 workspace=(a, b),
-                bin=((a + b) / 2.0 + dx, belt.width + dy),
+                bin=bin_position((a, b), belt.width, p("bin_offset")),
                 arm_speed=float(p("arm_speed")),
                 acceleration=float(p("acceleration")),
                 pick_time=float(p("pick_time")),
@@ -50,8 +55,8 @@ class Line:
 
     The seed is split into independent child streams (feeder arrivals, lateral positions,
     policy, one per robot for breakdowns), so the part stream does not depend on the policy.
-    ``future=(t0, seed2)`` keeps the parts fed up to ``t0`` and draws the later ones from
-    ``seed2``'s arrival streams: a sampled future for rollouts (the rest is unchanged).
+    ``parts`` replaces the feeder's own stream with a prepared one, e.g. a sampled future
+    for rollouts (:func:`twin.feeder.resampled`); the rest of the run is unchanged.
     """
 
     def __init__(
@@ -61,7 +66,7 @@ class Line:
         seed: int | None = None,
         hold: bool = False,
         duration: float | None = None,
-        future: tuple[float, int] | None = None,
+        parts: PartStream | None = None,
     ) -> None:
         self.scenario = scenario
         self.seed = scenario.seed if seed is None else seed
@@ -70,17 +75,17 @@ class Line:
         streams = [np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(3 + n)]
         self.env = simpy.Environment()
         b = scenario.belt
-        self.belt = Belt(b.length, b.width, b.speed, b.grid)
-        feeder = Feeder(scenario.feeder, b.width, streams[0], streams[1], scenario.source_dir)
-        parts = feeder.stream(self.duration)
-        if future is not None:  # a sampled future: parts fed after t0 come from another seed
-            t0, other = future
-            a, y = (np.random.default_rng(s) for s in np.random.SeedSequence(other).spawn(2))
-            then = Feeder(scenario.feeder, b.width, a, y, scenario.source_dir).stream(self.duration)
-            parts = splice(parts, then, t0)
+        self.specs = robot_specs(scenario)
+        self.last_end = self.specs[-1].workspace[1]
+        self.belt = Belt(b.length, b.width, b.speed, b.grid, end=self.last_end)
+        self.feeder = Feeder(scenario.feeder, b.width, streams[0], streams[1], scenario.source_dir)
+        if parts is None:
+            parts = self.feeder.stream(self.duration)
         self.belt.load(*parts)
         self.recorder = Recorder(len(self.belt))
-        self.specs = robot_specs(scenario)
+        # the feeder first: at a shared instant it puts parts on the belt before robots look
+        self.env.process(self.feeder.feeding(self.env, self.belt))
+        self.env.process(self.belt.conveying(self.env, self.recorder))
         self.policy = policy
         policy.reset(self.specs, streams[2])
         attach = getattr(policy, "attach", None)
@@ -93,19 +98,14 @@ class Line:
             mtbf, mttr = scenario.robot_param(i, "mtbf"), scenario.robot_param(i, "mttr")
             failures = None
             if mtbf > 0:
-                failures = (
-                    mtbf,
-                    mttr,
-                    scenario.robots.failure_distribution,
-                    streams[3 + spec.index],
-                )
-            bin_ = Bin(spec.bin, scenario.bins.capacity, scenario.bins.change_time)
+                dist = scenario.robots.failure_distribution
+                failures = Failures(mtbf, mttr, dist, streams[3 + spec.index])
+            bin_ = Bin(self.env, spec.bin, scenario.bins.capacity, scenario.bins.change_time)
             robot = Robot(self.env, spec, self.belt, bin_, self.recorder, failures)
             self.robots.append(robot)
         self.gateway.robots = self.robots
         for robot in self.robots:
             robot.start(self.gateway)
-        self.last_end = self.specs[-1].workspace[1]
         change = scenario.bins.change_time
         self.end_at = self.duration + self.last_end / b.speed + DRAIN_SLACK + change
 
@@ -113,6 +113,7 @@ class Line:
         """Feed for ``duration`` seconds, then drain until every part has an outcome."""
         log.debug("running %s seed %d until t=%.1f", self.scenario.name, self.seed, self.end_at)
         self.env.run(until=self.end_at)
+        self.recorder.close_open_spans(self.now)  # a repair outlasting the run still counts
 
     @property
     def now(self) -> float:

@@ -11,9 +11,12 @@ from __future__ import annotations
 import json
 import math
 import os
+import platform
+import re
 import secrets
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +27,7 @@ import tomli_w
 from twin.errors import UserError
 
 TABLE_SUFFIXES = (".csv", ".parquet")
+TEMPORARY = re.compile(r"\..+\.[0-9a-f]{12}\.tmp")  # atomic_path's names: .NAME.HEX.tmp
 
 
 class OutputError(UserError):
@@ -57,13 +61,18 @@ def check_table_path(path: str | Path, option: str = "output") -> Path:
     return check_writable(p, option)
 
 
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """Whether two output paths name one file (after resolving links and ``..``)."""
+    return Path(a).resolve() == Path(b).resolve()
+
+
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path`` to write; on success it replaces ``path``."""
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        tmp = target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp"
+        tmp = target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp"  # see TEMPORARY
         # os.open, not mkstemp: the file gets the usual permissions (0666 less the umask)
         os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     except OSError as e:
@@ -84,9 +93,16 @@ def write_text(text: str, path: str | Path) -> Path:
     return Path(path)
 
 
-def write_json(obj: Any, path: str | Path, indent: int | None = 2) -> Path:
-    """Write ``obj`` as strict JSON (NaN and infinities become null) atomically."""
-    return write_text(dumps_json(obj, indent) + "\n", path)
+def write_json(
+    obj: Any, path: str | Path, indent: int | None = 2, *, keep_nan: bool = False
+) -> Path:
+    """Write ``obj`` as JSON atomically; return the path.
+
+    By default the JSON is strict: NaN and infinities become null. With ``keep_nan`` they
+    are written as ``NaN`` / ``Infinity`` (which Python's ``json`` reads back), so records
+    such as a study's journal rows round-trip exactly.
+    """
+    return write_text(dumps_json(obj, indent, keep_nan=keep_nan) + "\n", path)
 
 
 def write_table(df: pd.DataFrame, path: str | Path, option: str = "output") -> Path:
@@ -103,24 +119,60 @@ def write_table(df: pd.DataFrame, path: str | Path, option: str = "output") -> P
     return p
 
 
-def jsonable(obj: Any) -> Any:
-    """``obj`` with numpy scalars made plain and NaN / infinities replaced by None."""
+def jsonable(obj: Any, keep_nan: bool = False) -> Any:
+    """``obj`` with numpy scalars made plain, paths as text, and NaN / infinities replaced
+    by None (kept as they are with ``keep_nan``)."""
     if isinstance(obj, Mapping):
-        return {str(k): jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v, keep_nan) for k, v in obj.items()}
     if isinstance(obj, list | tuple | np.ndarray):
-        return [jsonable(v) for v in obj]
+        return [jsonable(v, keep_nan) for v in obj]
     if isinstance(obj, np.generic):
         obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
+    if isinstance(obj, float) and not math.isfinite(obj) and not keep_nan:
         return None
     if obj is pd.NA:
         return None
+    if isinstance(obj, Path):
+        return str(obj)
     return obj
 
 
-def dumps_json(obj: Any, indent: int | None = None) -> str:
-    """Strict JSON text of ``obj`` (see :func:`jsonable`)."""
-    return json.dumps(jsonable(obj), indent=indent, allow_nan=False)
+def dumps_json(obj: Any, indent: int | None = None, keep_nan: bool = False) -> str:
+    """JSON text of ``obj`` (see :func:`jsonable`); strict unless ``keep_nan``."""
+    return json.dumps(jsonable(obj, keep_nan), indent=indent, allow_nan=keep_nan)
+
+
+def versions(*distributions: str) -> dict[str, str]:
+    """The Python version and each installed distribution's, for a result's provenance.
+
+    Keys are import-style names (``pnp-twin`` -> ``pnp_twin``); a missing one is "unknown".
+    """
+    out = {"python": platform.python_version()}
+    for dist in distributions:
+        try:
+            out[dist.replace("-", "_")] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[dist.replace("-", "_")] = "unknown"
+    return out
+
+
+def is_temporary(path: Path) -> bool:
+    """Whether ``path`` is a temporary file of :func:`atomic_path` (``.NAME.HEX.tmp``)."""
+    return TEMPORARY.fullmatch(path.name) is not None
+
+
+def remove_temporaries(folder: str | Path) -> list[Path]:
+    """Delete the temporary files an interrupted write left in ``folder``; return them.
+
+    Only the caller knows that no write of its own is still running there (a study holds
+    its folder's lock when it calls this).
+    """
+    removed = []
+    for p in Path(folder).glob(".*.tmp"):
+        if p.is_file() and is_temporary(p):
+            p.unlink(missing_ok=True)
+            removed.append(p)
+    return removed
 
 
 def dumps_toml(data: Mapping[str, Any]) -> str:

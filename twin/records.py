@@ -1,4 +1,8 @@
-"""Records appended as events happen, turned into pandas DataFrames once at the end."""
+"""Records appended as events happen, turned into pandas DataFrames once at the end.
+
+Inside the run robots are indexed from 0; the DataFrames number them from 1, as every
+table, override and report does (robot 1 is the most upstream).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from twin.belt import Belt
+from twin.geometry import exit_time
 
 PART_COLUMNS = [
     "part",
@@ -28,7 +33,10 @@ SPAN_COLUMNS = ["robot", "state", "start", "end"]
 
 
 class Recorder:
-    """Per-part outcomes, robot state spans and decision counts of one run."""
+    """Per-part outcomes, robot state spans and decision counts of one run.
+
+    Robots, the gateway and the belt report through its methods; the lists are read only.
+    """
 
     def __init__(self, n_parts: int) -> None:
         nan = math.nan
@@ -38,20 +46,63 @@ class Recorder:
         self.picked_at = [nan] * n_parts
         self.placed_at = [nan] * n_parts
         self.blocked = [0.0] * n_parts
+        self.missed_at = [nan] * n_parts
         self.spans: list[tuple[int, str, float, float]] = []
         self.decisions: Counter[tuple[int, str]] = Counter()
+        self.open: dict[int, tuple[str, float]] = {}  # robot -> (state, since): not yet ended
+
+    def begin(self, robot: int, state: str, start: float) -> None:
+        """A long state (down, wait) starts: kept open so a run ending inside it counts it."""
+        self.open[robot] = (state, start)
 
     def span(self, robot: int, state: str, start: float, end: float) -> None:
+        if self.open and self.open.get(robot) == (state, start):
+            del self.open[robot]
         if end > start:
             self.spans.append((robot, state, start, end))
 
+    def close_open_spans(self, now: float) -> None:
+        """End every state still open at ``now`` (the end of the run), e.g. a long repair."""
+        for robot, (state, start) in sorted(self.open.items()):
+            self.span(robot, state, start, now)
+
+    def decided(self, robot: int, rule: str) -> None:
+        """A decision of ``robot`` with candidates, answered by ``rule`` (or "?")."""
+        self.decisions[(robot, rule)] += 1
+
+    def noop(self, robot: int) -> None:
+        """A decision of ``robot`` without candidates: a NooP."""
+        self.decisions[(robot, "NooP")] += 1
+
+    def picked(
+        self, part: int, robot: int, rule: str | None, decided_at: float, picked_at: float
+    ) -> None:
+        """``robot`` gripped ``part`` at ``picked_at``, decided at ``decided_at`` by ``rule``."""
+        self.robot[part] = robot
+        self.rule[part] = rule
+        self.decided_at[part] = decided_at
+        self.picked_at[part] = picked_at
+
+    def placed(self, part: int, placed_at: float, blocked: float) -> None:
+        """``part`` went into its bin at ``placed_at``, after ``blocked`` s of box change."""
+        self.placed_at[part] = placed_at
+        if blocked > 0.0:
+            self.blocked[part] = blocked
+
+    def missed(self, part: int, at: float) -> None:
+        """``part`` passed the end of the last workspace unpicked at ``at`` (the belt)."""
+        self.missed_at[part] = at
+
     def parts_frame(self, belt: Belt, last_workspace_end: float) -> pd.DataFrame:
         """One row per part fed: outcome picked/missed; a missed part's left_at is when it
-        passed the end of the last workspace."""
+        passed the end of the last workspace (as the belt recorded it; parts still on the
+        belt when a run is cut short get the time they will pass it)."""
         fed = np.asarray(belt.fed, dtype=float)
         picked = np.asarray(self.picked_at, dtype=float)
         is_picked = ~np.isnan(picked)
-        left = np.where(is_picked, picked, fed + last_workspace_end / belt.speed)
+        missed = np.asarray(self.missed_at, dtype=float)
+        exits = np.where(np.isnan(missed), exit_time(fed, last_workspace_end, belt.speed), missed)
+        left = np.where(is_picked, picked, exits)
         robot = np.asarray(self.robot, dtype=np.int64)
         df = pd.DataFrame(
             {
@@ -60,7 +111,7 @@ class Recorder:
                 "y": np.asarray(belt.y, dtype=float),
                 "kind": belt.kind if belt.kind is not None else [""] * len(fed),
                 "outcome": np.where(is_picked, "picked", "missed"),
-                "robot": pd.array(np.where(is_picked, robot, -1), dtype="Int64"),
+                "robot": pd.array(np.where(is_picked, robot + 1, -1), dtype="Int64"),
                 "rule": [r if p else None for r, p in zip(self.rule, is_picked, strict=True)],
                 "decided_at": np.where(is_picked, self.decided_at, np.nan),
                 "picked_at": picked,
@@ -74,8 +125,10 @@ class Recorder:
         return df
 
     def spans_frame(self) -> pd.DataFrame:
-        return pd.DataFrame(self.spans, columns=SPAN_COLUMNS)
+        df = pd.DataFrame(self.spans, columns=SPAN_COLUMNS)
+        df["robot"] = df["robot"].astype(np.int64) + 1
+        return df
 
     def decisions_frame(self) -> pd.DataFrame:
-        rows = [(r, rule, n) for (r, rule), n in sorted(self.decisions.items())]
+        rows = [(r + 1, rule, n) for (r, rule), n in sorted(self.decisions.items())]
         return pd.DataFrame(rows, columns=["robot", "rule", "count"])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Generator
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -12,11 +13,28 @@ import simpy
 from twin.belt import FREE, Belt
 from twin.bin import Bin
 from twin.decision import Decision, RobotSpec
-from twin.geometry import intercept_time, move_time, position_along
+from twin.geometry import intercept_now, intercept_quad, intercept_time, move_time, position_along
 from twin.records import Recorder
 
 if TYPE_CHECKING:
     from twin.gateway import Gateway
+
+
+@dataclass(frozen=True)
+class Failures:
+    """One robot's breakdowns: mean time between failures and to repair (s), their
+    distribution ("exponential" or "fixed") and the robot's own random stream."""
+
+    mtbf: float
+    mttr: float
+    distribution: str
+    rng: np.random.Generator
+
+    def draw(self, mean: float) -> float:
+        """A time between failures or to repair with mean ``mean``."""
+        if self.distribution == "fixed":
+            return mean
+        return float(self.rng.exponential(mean))
 
 
 class Robot:
@@ -34,7 +52,7 @@ class Robot:
         belt: Belt,
         bin_: Bin,
         recorder: Recorder,
-        failures: tuple[float, float, str, np.random.Generator] | None = None,
+        failures: Failures | None = None,
     ) -> None:
         self.env = env
         self.spec = spec
@@ -51,11 +69,11 @@ class Robot:
         ys = (0.0, belt.width, spec.bin[1])
         reach = math.hypot(max(xs) - min(xs), max(ys) - min(ys))
         self.x_lo = self.a - reach * spec.belt_speed / spec.arm_speed
-        self._quad = spec.arm_speed**2 - spec.belt_speed**2
+        self._quad = intercept_quad(spec.arm_speed, spec.belt_speed)
         self.failures = failures
         self.next_failure_at = math.inf
         if failures is not None:
-            self.next_failure_at = self._draw(failures[0])
+            self.next_failure_at = failures.draw(failures.mtbf)
         self.down = False
         self.approach_until = -math.inf  # end of the current approach leg, for t_any
         self.claimed = -1
@@ -63,8 +81,18 @@ class Robot:
         self.process: simpy.Process | None = None
 
     def start(self, gateway: Gateway) -> None:
+        """Start the robot's process, reporting to ``gateway``."""
         self.gateway = gateway
         self.process = self.env.process(self.working())
+
+    def interrupt_approach(self) -> bool:
+        """Stop the approach leg now (t_any) if the robot is on one: its claim is released
+        and the tool stops where it is. False when it is not approaching a part."""
+        if self.claimed < 0 or self.approach_until <= self.env.now:
+            return False
+        assert self.process is not None
+        self.process.interrupt("t_any")
+        return True
 
     # -- candidates -------------------------------------------------------------------------
     def decision(self) -> Decision:
@@ -78,7 +106,6 @@ class Robot:
         px, py = self.tool
         a, b, quad = self.a, self.b, self._quad
         acc = self.spec.acceleration
-        vv = v * v
         vnow = v * now
         parts: list[int] = []
         xs: list[float] = []
@@ -94,7 +121,7 @@ class Robot:
             if acc > 0.0:
                 t = intercept_time(dx, dy, v, self.spec.arm_speed, acc)
             else:
-                t = (dx * v + math.sqrt(dx * dx * vv + quad * (dx * dx + dy * dy))) / quad
+                t = intercept_now(dx, dy, v, quad)
             if a <= x + v * t <= b:
                 parts.append(i)
                 xs.append(x)
@@ -111,14 +138,14 @@ class Robot:
         v_r, acc, pick = spec.arm_speed, spec.acceleration, spec.pick_time
         bx, by = bin_.position
         timeout = env.timeout
-        holder, left_at = belt.holder, belt.left_at
-        decides_at_once = gw.scheme == "t_continue" and not gw.hold
+        decides_at_once = gw.decides_at_once
         while True:
             if env.now >= self.next_failure_at:
                 yield from self._breaking_down()
             hold = None if decides_at_once else gw.free(self)
             if hold is not None:
                 t0 = env.now
+                rec.begin(me, "wait", t0)
                 yield hold
                 rec.span(me, "wait", t0, env.now)
             t0 = env.now
@@ -127,33 +154,27 @@ class Robot:
                 yield from self._noop()
                 continue
             d = Decision(spec, t0, self.tool, *found)
-            k = gw.choose(self, d)
+            k, rule = gw.choose(self, d)
             part, t = d.parts[k], d.times[k]
             tx, ty = d.xs[k] + v * t, d.ys[k]
-            holder[part] = me
-            left_at[part] = t0 + t
+            belt.claim(part, me, t0 + t)
             self.claimed = part
             self.approach_until = t0 + t
             try:
                 yield timeout(t + pick)
             except simpy.Interrupt:
-                holder[part] = FREE
-                left_at[part] = math.inf
+                belt.release(part)
                 self.claimed = -1
                 rec.span(me, "interrupted", t0, env.now)
                 self.tool = position_along(self.tool, (tx, ty), env.now - t0, v_r, acc)
                 continue
             self.claimed = -1
-            rec.robot[part] = me
-            rec.rule[part] = d.rule
-            rec.decided_at[part] = t0
-            rec.picked_at[part] = t0 + t
+            rec.picked(part, me, rule, t0, t0 + t)
             dist = math.hypot(bx - tx, by - ty)
             arrive = env.now + (dist / v_r if acc <= 0.0 else move_time(dist, v_r, acc))
             blocked, done = bin_.place(arrive, spec.place_time)
-            rec.placed_at[part] = done
+            rec.placed(part, done, blocked)
             if blocked > 0.0:
-                rec.blocked[part] = blocked
                 rec.span(me, "blocked", arrive, arrive + blocked)
             yield timeout(done - env.now)
             self.tool = bin_.position
@@ -177,13 +198,8 @@ class Robot:
         self.down = True
         self.gateway.down(self)
         t0 = env.now
-        yield env.timeout(self._draw(self.failures[1]))
+        self.recorder.begin(self.index, "down", t0)
+        yield env.timeout(self.failures.draw(self.failures.mttr))
         self.recorder.span(self.index, "down", t0, env.now)
         self.down = False
-        self.next_failure_at = env.now + self._draw(self.failures[0])
-
-    def _draw(self, mean: float) -> float:
-        assert self.failures is not None
-        if self.failures[2] == "fixed":
-            return mean
-        return float(self.failures[3].exponential(mean))
+        self.next_failure_at = env.now + self.failures.draw(self.failures.mtbf)

@@ -35,13 +35,25 @@ def simulate(
     policy: Policy,
     seed: int | None = None,
     policy_name: str | None = None,
+    engine: str = "simpy",
 ) -> RunResult:
-    """Run ``scenario`` with ``policy`` (seed defaults to the scenario's) and measure it."""
+    """Run ``scenario`` with ``policy`` (seed defaults to the scenario's) and measure it.
+
+    ``engine``: "simpy" (this module), "fast" (the compiled :mod:`twin.fast`, same events,
+    rule policies only) or "auto" (fast where it can, else simpy); ``meta["engine"]`` says
+    which ran.
+    """
+    if engine != "simpy":
+        from twin.fast import pick_engine, simulate_fast
+
+        if pick_engine(engine, policy) == "fast":
+            return simulate_fast(scenario, policy, seed=seed, policy_name=policy_name)
     t0 = time.perf_counter()
     line = Line(scenario, policy, seed=seed)
     line.run()
     wall = time.perf_counter() - t0
     rec = line.recorder
+    rec.close_open_spans(line.now)  # idempotent; for Line subclasses with their own run()
     parts = rec.parts_frame(line.belt, line.last_end)
     spans = rec.spans_frame()
     kpis = compute_kpis(parts, spans, line.specs, scenario.warmup, line.duration)
@@ -54,5 +66,6 @@ def simulate(
         **kpis,
     }
     return RunResult(
-        scenario, name, line.seed, kpis, parts, spans, rec.decisions_frame(), wall, line.now
+        scenario, name, line.seed, kpis, parts, spans, rec.decisions_frame(), wall, line.now,
+        meta={"engine": "simpy"},
     )

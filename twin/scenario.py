@@ -4,6 +4,12 @@ A scenario is data. It is read from TOML or YAML (by suffix), validated with pyd
 frozen models, and never changed afterwards: overrides (``--set robots.arm_speed=4``) are
 applied to the raw mapping *before* validation, so every value passes the same checks.
 
+Validation is strict: numbers must be numbers (``count = true`` or ``rate = "10"`` are
+refused, not coerced), every float must be finite, every physical quantity lies within the
+bounds its field states (in the JSON Schema as ``minimum``/``maximum`` with a ``unit``), and
+settings that contradict each other are refused rather than ignored. A field left out takes
+the value of the shipped ``paper_baseline`` (a test keeps the two equal).
+
 Units are SI throughout (metres, seconds, m/s, parts/s); see ``shared/MODEL.md``.
 """
 
@@ -12,26 +18,45 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    Strict,
+    field_validator,
+    model_validator,
+)
 
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+# Strict numbers: an int is a valid float, but a bool or a string is neither.
+Real = Annotated[float, Strict()]
+Whole = Annotated[int, Strict()]
+Text = Annotated[str, Strict()]
+
+YEAR = 31_536_000.0  # s: the longest run or warm-up a scenario may ask for
+SEED_MAX = 2**63 - 1
+NO_CONTROL = r"^[^\x00-\x1f\x7f]*$"  # one-line text: no newlines or other control characters
+
+
+def num(default: Any, unit: str, description: str, **bounds: float) -> Any:
+    """A numeric field with its unit (shown in the schema and in error messages)."""
+    return Field(default, description=description, json_schema_extra={"unit": unit}, **bounds)
 
 
 class Frozen(BaseModel):
-    """Base of every scenario model: immutable, unknown keys rejected."""
+    """Base of every scenario model: immutable, unknown keys rejected, finite floats only."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
 class BeltConfig(Frozen):
     """The conveyor: a part's position is x(t) = speed * (t - fed_at)."""
 
-    length: PositiveFloat = Field(2.4, description="Belt length L in m, from the feeder (x=0).")
-    width: PositiveFloat = Field(0.4, description="Belt width W in m (y from 0 to W).")
-    speed: PositiveFloat = Field(0.8, description="Belt speed v_b in m/s.")
-    grid: tuple[Annotated[int, Field(ge=1, le=4096)], Annotated[int, Field(ge=1, le=1024)]] = Field(
-        (64, 8), description="Observation grid: cells along the belt, cells across."
+    length: Real = num(2.4, "m", "Belt length L in m, from the feeder (x=0).", gt=0, le=1000)
+    width: Real = num(0.4, "m", "Belt width W in m (y from 0 to W).", gt=0, le=10)
+    speed: Real = num(0.8, "m/s", "Belt speed v_b in m/s.", gt=0, le=10)
+    grid: tuple[Annotated[Whole, Field(ge=1, le=4096)], Annotated[Whole, Field(ge=1, le=1024)]] = (
+        Field((64, 8), description="Observation grid: cells along the belt, cells across.")
     )
 
 
@@ -41,74 +66,106 @@ class FeederConfig(Frozen):
     arrival: Literal["poisson", "normal", "fixed", "trace"] = Field(
         "poisson", description="Arrival process: poisson, normal gaps, fixed spacing, or trace."
     )
-    rate: PositiveFloat = Field(10.0, description="Part flow f_p in parts/s (not used by trace).")
-    cv: NonNegFloat = Field(
-        0.3, description="Coefficient of variation of the gaps (normal arrivals only)."
+    rate: Real = num(
+        10.0, "parts/s", "Part flow f_p in parts/s (not used by trace).", gt=0, le=1000
     )
-    trace: str | None = Field(
+    cv: Real = num(
+        0.3, "1", "Coefficient of variation of the gaps (normal arrivals only).", ge=0, le=10
+    )
+    trace: Text | None = Field(
         None,
+        min_length=1,
+        max_length=4096,
         description="CSV of recorded arrivals (columns time, y[, kind]); relative paths are "
-        "resolved against the scenario file's folder. Required when arrival = 'trace'.",
+        "resolved against the scenario file's folder. Required when arrival = 'trace', "
+        "refused otherwise.",
     )
     lateral: Literal["normal", "uniform"] = Field(
         "normal", description="Lateral placement: truncated normal or uniform across the belt."
     )
-    lateral_mean: NonNegFloat | None = Field(
-        None, description="Mean of the truncated normal in m; default the belt centre."
+    lateral_mean: Real | None = num(
+        None, "m", "Mean of the truncated normal in m; default the belt centre.", ge=0, le=10
     )
-    lateral_sd: PositiveFloat = Field(0.08, description="SD of the truncated normal in m.")
+    lateral_sd: Real = num(
+        0.08, "m", "SD of the truncated normal in m; at most the belt width.", gt=0, le=10
+    )
 
     @model_validator(mode="after")
-    def _trace_needs_file(self) -> FeederConfig:
+    def _consistent(self) -> FeederConfig:
         if self.arrival == "trace" and not self.trace:
             raise ValueError("feeder.trace: a trace file is required when arrival = 'trace'")
+        if self.arrival != "trace" and self.trace is not None:
+            raise ValueError(
+                f"feeder.trace: given, but feeder.arrival = '{self.arrival}' does not replay "
+                "a trace; set feeder.arrival = 'trace', or remove feeder.trace"
+            )
+        if self.lateral == "uniform" and self.lateral_mean is not None:
+            raise ValueError(
+                "feeder.lateral_mean: given, but feeder.lateral = 'uniform' has no mean; "
+                "set feeder.lateral = 'normal', or remove feeder.lateral_mean"
+            )
         return self
+
+
+Position = Annotated[Real, Field(ge=0, le=1000)]
+PickTime = Annotated[Real, Field(ge=0, le=60)]
+ArmSpeed = Annotated[Real, Field(gt=0, le=100)]
+Acceleration = Annotated[Real, Field(ge=0, le=1000)]
+BinOffset = tuple[Annotated[Real, Field(ge=-10, le=10)], Annotated[Real, Field(ge=0, le=10)]]
+Mtbf = Annotated[Real, Field(ge=0, le=1e9)]
+Mttr = Annotated[Real, Field(ge=0, le=1e7)]
 
 
 class RobotOverride(Frozen):
     """Per-robot overrides of the shared robot parameters; unset fields keep the default."""
 
-    robot: Annotated[int, Field(ge=1, description="Robot number, 1 = most upstream.")]
-    arm_speed: PositiveFloat | None = None
-    pick_time: NonNegFloat | None = None
-    place_time: NonNegFloat | None = None
-    acceleration: NonNegFloat | None = None
-    bin_offset: tuple[float, float] | None = None
-    mtbf: NonNegFloat | None = None
-    mttr: NonNegFloat | None = None
+    robot: Annotated[Whole, Field(ge=1, le=64, description="Robot number, 1 = most upstream.")]
+    arm_speed: ArmSpeed | None = num(None, "m/s", "Tool speed v_r of this robot in m/s.")
+    pick_time: PickTime | None = num(None, "s", "Grip time of this robot in s.")
+    place_time: PickTime | None = num(None, "s", "Release time of this robot in s.")
+    acceleration: Acceleration | None = num(None, "m/s^2", "Acceleration limit in m/s^2.")
+    bin_offset: BinOffset | None = num(None, "m", "Bin position of this robot, as robots'.")
+    mtbf: Mtbf | None = num(None, "s", "Mean time between failures of this robot in s.")
+    mttr: Mttr | None = num(None, "s", "Mean time to repair of this robot in s.")
 
 
 class RobotsConfig(Frozen):
     """The robots, identical by default, upstream to downstream."""
 
-    count: Annotated[int, Field(ge=1, le=64)] = Field(4, description="Number of robots N.")
-    workspaces: tuple[tuple[float, float], ...] | None = Field(
+    count: Annotated[Whole, Field(ge=1, le=64)] = Field(4, description="Number of robots N.")
+    workspaces: tuple[tuple[Position, Position], ...] | None = num(
         None,
-        description="Explicit workspaces [[a1, b1], ...] in m along the belt; when unset they "
+        "m",
+        "Explicit workspaces [[a1, b1], ...] in m along the belt; when unset they "
         "are laid out from first_workspace_start, workspace_length and workspace_gap.",
     )
-    first_workspace_start: NonNegFloat = Field(0.3, description="a_1 in m.")
-    workspace_length: PositiveFloat = Field(0.5, description="b_i - a_i in m.")
-    workspace_gap: NonNegFloat = Field(0.0, description="Gap between workspaces in m.")
-    arm_speed: PositiveFloat = Field(3.0, description="Tool speed v_r in m/s (straight moves).")
-    pick_time: NonNegFloat = Field(0.1, description="Grip time in s.")
-    place_time: NonNegFloat = Field(0.1, description="Release time in s.")
-    acceleration: NonNegFloat = Field(
-        0.0, description="Acceleration limit in m/s^2 (trapezoidal moves); 0 = instantaneous."
+    first_workspace_start: Real = num(0.3, "m", "a_1 in m.", ge=0, le=1000)
+    workspace_length: Real = num(0.5, "m", "b_i - a_i in m.", gt=0, le=100)
+    workspace_gap: Real = num(0.0, "m", "Gap between workspaces in m.", ge=0, le=100)
+    arm_speed: ArmSpeed = num(3.0, "m/s", "Tool speed v_r in m/s (straight moves).")
+    pick_time: PickTime = num(0.12, "s", "Grip time in s.")
+    place_time: PickTime = num(0.12, "s", "Release time in s.")
+    acceleration: Acceleration = num(
+        0.0,
+        "m/s^2",
+        "Acceleration limit in m/s^2 (trapezoidal moves); 0 = instantaneous. When set, the "
+        "arm must reach belt speed within its workspace: at least v_b^2 / (2 L_ws).",
     )
-    bin_offset: tuple[float, float] = Field(
-        (0.0, 0.2),
-        description="Bin position relative to (workspace centre x, upper belt edge W), in m.",
+    bin_offset: BinOffset = num(
+        (0.0, 0.25),
+        "m",
+        "Bin position relative to (workspace centre x, upper belt edge W), in m; the bin "
+        "sits on the upper side (second value >= 0).",
     )
-    mtbf: NonNegFloat = Field(
-        0.0, description="Mean time between failures in s; 0 = no breakdowns."
-    )
-    mttr: NonNegFloat = Field(0.0, description="Mean time to repair in s.")
+    mtbf: Mtbf = num(0.0, "s", "Mean time between failures in s; 0 = no breakdowns.")
+    mttr: Mttr = num(0.0, "s", "Mean time to repair in s.")
     failure_distribution: Literal["exponential", "fixed"] = Field(
         "exponential", description="Distribution of times between failures and to repair."
     )
     overrides: tuple[RobotOverride, ...] = Field(
-        (), description="Per-robot overrides, e.g. [[robots.overrides]] robot = 2 arm_speed = 4."
+        (),
+        max_length=64,
+        description="Per-robot overrides, e.g. [[robots.overrides]] robot = 2 arm_speed = 4.",
     )
 
     @model_validator(mode="after")
@@ -144,12 +201,32 @@ class RobotsConfig(Frozen):
 class BinsConfig(Frozen):
     """Packaging boxes, one per robot."""
 
-    capacity: Annotated[int, Field(ge=0)] = Field(
-        0, description="Parts per box before a box change; 0 = unlimited."
+    capacity: Annotated[Whole, Field(ge=0, le=1_000_000)] = num(
+        0, "parts", "Parts per box before a box change; 0 = unlimited."
     )
-    change_time: NonNegFloat = Field(
-        0.0, description="Box change time in s, during which the robot cannot place."
+    change_time: Real = num(
+        0.0, "s", "Box change time in s, during which the robot cannot place.", ge=0, le=3600
     )
+
+
+def policy_key(name: str) -> str:
+    """A policy name as the registry reads it: rules upper-case, a prefix lower-case."""
+    text = name.strip()
+    prefix, sep, arg = text.partition(":")
+    if sep:
+        return f"{prefix.strip().lower()}:{arg.strip()}"
+    return ",".join(r.strip().upper() for r in text.split(","))
+
+
+def duplicate_policy(names: Any) -> str | None:
+    """The first name in ``names`` that repeats an earlier one once normalised, else None."""
+    seen: dict[str, str] = {}
+    for name in names:
+        key = policy_key(str(name))
+        if key in seen:
+            return f"'{name}' is '{seen[key]}' again"
+        seen[key] = str(name)
+    return None
 
 
 class SweepConfig(Frozen):
@@ -159,14 +236,27 @@ class SweepConfig(Frozen):
         default_factory=dict,
         description="Dotted scenario path -> list of values; the grid is their product.",
     )
-    policies: tuple[str, ...] = Field(
-        (), description="Policies (names or per-robot mixes) to compare; default the scenario's."
+    policies: tuple[Annotated[Text, Field(min_length=1, max_length=1000)], ...] = Field(
+        (),
+        description="Policies (names or per-robot mixes) to compare; default the scenario's. "
+        "Each at most once (names are case-insensitive).",
     )
-    replications: Annotated[int, Field(ge=1, le=10_000)] = 5
-    duration: PositiveFloat | None = Field(None, description="Overrides the run duration, s.")
-    warmup: NonNegFloat | None = Field(None, description="Overrides the warm-up, s.")
-    target: Annotated[float, Field(gt=0, le=100)] | None = Field(
-        None, description="Target gripping rate in percent, for sizing studies."
+    replications: Annotated[Whole, Field(ge=1, le=10_000)] | Literal["auto"] = Field(
+        5,
+        description="Replications per point and policy (2 or more for a CI), or 'auto': add "
+        "replications in rounds until every point's CI half-width of G is at most half_width.",
+    )
+    half_width: Real | None = num(
+        None, "%", "With replications = 'auto': the target CI half-width of G, in points.",
+        gt=0, le=100,
+    )
+    max_replications: Annotated[Whole, Field(ge=2, le=10_000)] | None = Field(
+        None, description="With replications = 'auto': the most replications (default 30)."
+    )
+    duration: Real | None = num(None, "s", "Overrides the run duration, s.", gt=0, le=YEAR)
+    warmup: Real | None = num(None, "s", "Overrides the warm-up, s.", ge=0, le=YEAR)
+    target: Real | None = num(
+        None, "%", "Target gripping rate in percent, for sizing studies.", gt=0, le=100
     )
 
     @field_validator("grid")
@@ -177,28 +267,65 @@ class SweepConfig(Frozen):
                 raise ValueError(f"sweep.grid.{path}: empty list; give at least one value")
         return v
 
+    @field_validator("policies")
+    @classmethod
+    def _distinct(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        twice = duplicate_policy(v)
+        if twice:
+            raise ValueError(f"sweep.policies: {twice}; name each policy once")
+        return v
+
 
 Termination = Literal["t_continue", "t_all", "t_any"]
 
 
 class Scenario(Frozen):
-    """One line and one run: geometry, feeder, robots, bins, policy, timing, seed."""
+    """One line and one run: geometry, feeder, robots, bins, policy, timing, seed.
 
-    name: str = Field("scenario", description="Short name, used in run and file names.")
-    description: str = Field("", description="Free text shown in reports.")
+    ``source_dir`` (the scenario file's folder, against which a relative trace path is
+    resolved) is not a field: the loader sets it, a user cannot (``--set source_dir=...``
+    is an unknown key).
+    """
+
+    name: Text = Field(
+        "scenario",
+        min_length=1,
+        max_length=200,
+        pattern=NO_CONTROL,
+        description="Short name, used in run and file names.",
+    )
+    description: Text = Field("", max_length=10_000, description="Free text shown in reports.")
     belt: BeltConfig = BeltConfig()
     feeder: FeederConfig = FeederConfig()
     robots: RobotsConfig = RobotsConfig()
     bins: BinsConfig = BinsConfig()
-    policy: str = Field("SD", description="Rule name or per-robot mix, e.g. 'SPT,SPT,SPT,FIFO'.")
-    termination: Termination = Field("t_continue", description="t_continue | t_all | t_any.")
-    duration: PositiveFloat = Field(600.0, description="Feeding time in s (the run then drains).")
-    warmup: NonNegFloat = Field(60.0, description="Parts fed before this time are not counted.")
-    seed: Annotated[int, Field(ge=0)] = Field(0, description="Master seed of the run.")
-    sweep: SweepConfig | None = Field(None, description="Optional study definition.")
-    source_dir: str | None = Field(
-        None, description="Folder of the scenario file (set by the loader; resolves trace paths)."
+    policy: Text = Field(
+        "SD",
+        min_length=1,
+        max_length=1000,
+        description="Rule name or per-robot mix, e.g. 'SPT,SPT,SPT,FIFO'.",
     )
+    termination: Termination = Field("t_continue", description="t_continue | t_all | t_any.")
+    duration: Real = num(
+        600.0, "s", "Feeding time in s (the run then drains); at most a year.", gt=0, le=YEAR
+    )
+    warmup: Real = num(60.0, "s", "Parts fed before this time are not counted.", ge=0, le=YEAR)
+    seed: Annotated[Whole, Field(ge=0, le=SEED_MAX)] = Field(
+        1, description="Master seed of the run."
+    )
+    sweep: SweepConfig | None = Field(None, description="Optional study definition.")
+    _source_dir: str | None = PrivateAttr(None)
+
+    @property
+    def source_dir(self) -> str | None:
+        """Folder of the scenario file (set by the loader; resolves a relative trace path)."""
+        return self._source_dir
+
+    def located(self, source_dir: str | None) -> Scenario:
+        """This scenario, read from a file in ``source_dir`` (a copy; the fields are equal)."""
+        out = self.model_copy()
+        out._source_dir = source_dir
+        return out
 
     @model_validator(mode="after")
     def _check_line(self) -> Scenario:
@@ -206,6 +333,24 @@ class Scenario(Frozen):
             raise ValueError(
                 f"warmup: {self.warmup} s must be shorter than duration ({self.duration} s)"
             )
+        self._check_layout()
+        self._check_arms()
+        f, w = self.feeder, self.belt.width
+        if f.lateral_mean is not None and f.lateral_mean > w:
+            raise ValueError(
+                f"feeder.lateral_mean: {f.lateral_mean} m is off the belt; "
+                f"allowed 0..{w} (belt.width)"
+            )
+        if f.lateral == "normal" and f.lateral_sd > w:
+            raise ValueError(
+                f"feeder.lateral_sd: {f.lateral_sd:g} m is wider than the belt "
+                f"(belt.width = {w:g} m); give at most {w:g} m, or feeder.lateral = 'uniform'"
+            )
+        if self.robots.mtbf > 0 and self.robots.mttr <= 0:
+            raise ValueError("robots.mttr: must be > 0 when robots.mtbf > 0 (breakdowns on)")
+        return self
+
+    def _check_layout(self) -> None:
         spaces = self.robots.layout()
         prev_b = -math.inf
         for i, (a, b) in enumerate(spaces, start=1):
@@ -222,21 +367,24 @@ class Scenario(Frozen):
                 f"robots.workspaces: the last workspace ends at {prev_b:g} m, beyond "
                 f"belt.length = {self.belt.length:g} m; lengthen the belt or shrink workspaces"
             )
-        for i in range(1, self.robots.count + 1):
+
+    def _check_arms(self) -> None:
+        v_b = self.belt.speed
+        for i, (a, b) in enumerate(self.robots.layout(), start=1):
             v_r = self.robot_param(i, "arm_speed")
-            if v_r <= self.belt.speed:
+            if v_r <= v_b:
                 raise ValueError(
                     f"robots.arm_speed: {v_r:g} m/s for robot {i} must exceed belt.speed "
-                    f"({self.belt.speed:g} m/s) or no part can be intercepted"
+                    f"({v_b:g} m/s) or no part can be intercepted"
                 )
-        if self.feeder.lateral_mean is not None and self.feeder.lateral_mean > self.belt.width:
-            raise ValueError(
-                f"feeder.lateral_mean: {self.feeder.lateral_mean} m is off the belt; "
-                f"allowed 0..{self.belt.width} (belt.width)"
-            )
-        if self.robots.mtbf > 0 and self.robots.mttr <= 0:
-            raise ValueError("robots.mttr: must be > 0 when robots.mtbf > 0 (breakdowns on)")
-        return self
+            acc = self.robot_param(i, "acceleration")
+            least = v_b * v_b / (2.0 * (b - a))
+            if 0 < acc <= least:
+                raise ValueError(
+                    f"robots.acceleration: {acc:g} m/s^2 for robot {i} is too low to reach "
+                    f"belt speed ({v_b:g} m/s) within its {b - a:g} m workspace; give more "
+                    f"than {least:.3g} m/s^2, or 0 for no limit"
+                )
 
     def robot_param(self, robot: int, name: str) -> Any:
         """Robot ``robot``'s (1-based) value of ``name``, its override if set."""

@@ -145,7 +145,7 @@ def root(
     if verbose:
         handler = logging.StreamHandler(sys.stderr)
         handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
-        for name in ("twin", "policies"):
+        for name in ("twin", "policies", "pnp_twin", "reports"):
             logger = logging.getLogger(name)
             logger.setLevel(logging.DEBUG if verbose > 1 else logging.INFO)
             logger.handlers = [handler]

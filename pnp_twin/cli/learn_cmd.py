@@ -20,11 +20,11 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
-from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from pnp_twin.cli.app import ScenarioArg, SetOpt, app, fail
+from pnp_twin.cli.console import stdout_console
 from pnp_twin.parallel import BACKENDS, ray_map
 from twin.loader import load_scenario, parse_sets
 
@@ -334,10 +334,7 @@ def evaluate_cmd(
             ci,
             better,
         )
-    console = Console(highlight=False)
-    if not console.is_terminal:
-        console.width = max(console.width, 120)
-    console.print(table)
+    stdout_console().print(table)
     if out is not None:
         for path in write_evaluation(result, folder, out):
             typer.echo(f"wrote {path}", err=True)

@@ -18,23 +18,34 @@ from typing import Annotated, Any
 import typer
 import yaml
 from rich import box
-from rich.console import Console
 from rich.table import Table
 
 from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.cli.console import note, stderr_console, stdout_console
 from policies import make_policy
-from twin.feeder import read_trace
+from twin.budget import check_run
 from twin.loader import ScenarioError, load_scenario, parse_sets, shipped_scenarios
 from twin.output import (
+    OutputError,
     check_table_path,
     check_writable,
     dumps_json,
     dumps_toml,
+    same_file,
     write_table,
     write_text,
 )
 from twin.run import RunResult, simulate
 from twin.scenario import Scenario
+from twin.trace import read_trace
+
+
+class Engine(StrEnum):
+    """Simulation engines (``twin.run.simulate``): identical events, different speed."""
+
+    simpy = "simpy"
+    fast = "fast"
+    auto = "auto"
 
 
 class TextFormat(StrEnum):
@@ -42,18 +53,6 @@ class TextFormat(StrEnum):
 
     toml = "toml"
     yaml = "yaml"
-
-
-def _stdout() -> Console:
-    console = Console(highlight=False)
-    if not console.is_terminal:  # piped to a file: no terminal width to respect
-        console.width = max(console.width, 120)
-    return console
-
-
-def _note(message: str) -> None:
-    """A line of information on stderr (never mixed into the tables or JSON on stdout)."""
-    typer.echo(message, err=True)
 
 
 def _load(scenario: str, sets: list[str] | None) -> Scenario:
@@ -97,34 +96,50 @@ def run(
             help="Write the robot state spans to FILE (.csv or .parquet).",
         ),
     ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Run even above the work limit (twin.budget).")
+    ] = False,
+    engine: Annotated[
+        Engine,
+        typer.Option(
+            "--engine",
+            help="simpy (the reference), fast (compiled, same events; rules and mixes) or "
+            "auto (fast where it can).",
+        ),
+    ] = Engine.simpy,
 ) -> None:
     """Simulate SCENARIO with a policy and show its KPIs."""
     if events is not None:
         check_table_path(events, "--events")
     if spans is not None:
         check_table_path(spans, "--spans")
+    if events is not None and spans is not None and same_file(events, spans):
+        raise OutputError(
+            f"--spans: '{spans}' is the file --events writes; give the two different files"
+        )
     scn = _load(scenario, sets)
+    check_run(scn, force)
     spec = policy if policy is not None else scn.policy
     pol = make_policy(spec, scn.robots.count)
-    err = Console(stderr=True)
+    err = stderr_console()
     busy = err.status(f"simulating {scn.name}...") if err.is_terminal else contextlib.nullcontext()
     with busy:
-        result = simulate(scn, pol, seed=seed)
+        result = simulate(scn, pol, seed=seed, engine=engine.value)
     if events is not None:
         write_table(result.parts, events, "--events")
-        _note(f"wrote {len(result.parts)} part records to {events}")
+        note(f"wrote {len(result.parts)} part records to {events}")
     if spans is not None:
         write_table(result.spans, spans, "--spans")
-        _note(f"wrote {len(result.spans)} robot state spans to {spans}")
+        note(f"wrote {len(result.spans)} robot state spans to {spans}")
     if as_json:
-        typer.echo(dumps_json(result.kpis))
+        typer.echo(dumps_json({**result.kpis, "engine": result.meta.get("engine", "simpy")}))
         return
-    out = _stdout()
+    out = stdout_console()
     out.print(kpi_table(result))
     out.print(robot_table(result.kpis))
-    _note(
+    note(
         f"fed {scn.duration:g} s, drained to t = {result.sim_time:,.0f} s, "
-        f"in {result.wall_time:.2f} s wall time"
+        f"in {result.wall_time:.2f} s wall time ({result.meta.get('engine', 'simpy')} engine)"
     )
 
 
@@ -145,11 +160,11 @@ def kpi_table(result: RunResult) -> Table:
     k = result.kpis
     w0, w1 = k["window"]
     capacity = sum(r["capacity"] for r in k["robots"])
-    bound = "part flow" if k["part_flow"] <= capacity else "robot capacity"
+    bound = "part flow" if k["part_flow"] <= capacity else "measured cycle rate"
     t = Table(
         title=f"{k['scenario']}: policy {k['policy']}, seed {k['seed']}, {k['termination']}",
-        caption=f"parts fed in [{w0:g}, {w1:g}) s; efficiency = throughput / "
-        "min(part flow, robot capacity)",
+        caption=f"parts fed in [{w0:g}, {w1:g}) s; efficiency = throughput / min(part flow, "
+        "robots' measured cycle rate = sum of 1 / mean cycle time)",
         box=box.SIMPLE_HEAVY,
         show_header=False,
     )
@@ -158,12 +173,12 @@ def kpi_table(result: RunResult) -> Table:
     g = k["gripping_rate"]
     t.add_row("Gripping rate G", "n/a" if not math.isfinite(g) else f"{g:.2f} %")
     t.add_row(
-        "Parts presented / picked / missed",
+        "Parts presented / picked / lost",
         f"{k['parts_presented']} / {k['parts_picked']} / {k['parts_missed']}",
     )
     t.add_row("Throughput", _num(k["throughput"], ".3f", " parts/s"))
     t.add_row("Part flow", _num(k["part_flow"], ".3f", " parts/s"))
-    t.add_row("Robot capacity (sum)", _num(capacity, ".3f", " parts/s"))
+    t.add_row("Measured cycle rate (sum)", _num(capacity, ".3f", " parts/s"))
     t.add_row(f"Efficiency (of {bound})", _pct(k["efficiency"]))
     t.add_row("Utilisation (mean)", _pct(k["utilisation"]))
     t.add_row(
@@ -182,11 +197,12 @@ def robot_table(kpis: dict[str, Any]) -> Table:
         box=box.SIMPLE_HEAVY,
         pad_edge=False,
         collapse_padding=True,
-        caption="missed = parts that left the robot's workspace unpicked",
+        caption="passed on = left the workspace unpicked, picked downstream; lost = left it "
+        "unpicked, reached the return conveyor",
     )
     for col in ("robot", "workspace m", "picks", "parts/s", "util", "NooP", "wait", "blocked"):
         t.add_column(col, justify="right")
-    for col in ("down", "missed"):
+    for col in ("down", "passed on", "lost"):
         t.add_column(col, justify="right")
     for r in kpis["robots"]:
         a, b = r["workspace"]
@@ -200,7 +216,8 @@ def robot_table(kpis: dict[str, Any]) -> Table:
             _share(r["wait"]),
             _share(r["blocked"]),
             _share(r["down"]),
-            str(r["missed"]),
+            str(r["passed_on"]),
+            str(r["lost"]),
         )
     return t
 
@@ -267,7 +284,7 @@ def validate(
     else:
         text = dumps_toml(data)
     typer.echo(f"# {scn.name}: resolved by pnp-twin validate\n{text}", nl=False)
-    _note(f"ok: {scenario} is a valid scenario ({'; '.join(notes)})")
+    note(f"ok: {scenario} is a valid scenario ({'; '.join(notes)})")
 
 
 def schema_text() -> str:
@@ -294,7 +311,7 @@ def schema(
         typer.echo(text, nl=False)
         return
     write_text(text, out)
-    _note(f"wrote the scenario schema to {out}")
+    note(f"wrote the scenario schema to {out}")
 
 
 @app.command("list")
@@ -311,4 +328,4 @@ def list_scenarios() -> None:
             continue
         feed = "trace" if s.feeder.arrival == "trace" else f"{s.feeder.rate:g}/s {s.feeder.arrival}"
         t.add_row(name, str(s.robots.count), feed, s.policy, s.description)
-    _stdout().print(t)
+    stdout_console().print(t)

@@ -7,6 +7,7 @@ second, time left), prints a short summary table on stdout, and writes the HTML 
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import os
@@ -22,7 +23,6 @@ from typing import Annotated, Any
 import pandas as pd
 import typer
 from rich import box
-from rich.console import Console
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -37,12 +37,15 @@ from rich.table import Table
 from rich.text import Text
 
 from pnp_twin.cli.app import SetOpt, app
+from pnp_twin.cli.console import note, stderr_console, stdout_console
 from pnp_twin.studies import Options, build_plan, run_sweep
 from pnp_twin.studies.folder import Tables
+from pnp_twin.studies.plan import AUTO
 from pnp_twin.studies.rulemix import DEFAULT_BUDGET, run_mix
 from pnp_twin.studies.sizing import COUNT, MTBF, run_size
+from twin.budget import check_study
 from twin.errors import UserError
-from twin.loader import load_scenario, parse_sets
+from twin.loader import ScenarioError, load_scenario, parse_sets, with_overrides
 from twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -78,7 +81,26 @@ AddressOpt = Annotated[
     typer.Option("--address", help="Ray cluster address (default RAY_ADDRESS, else a local Ray)."),
 ]
 RepsOpt = Annotated[
-    int | None, typer.Option("--replications", "-r", help="Replications (default sweep's).")
+    str | None,
+    typer.Option(
+        "--replications",
+        "-r",
+        metavar="N|auto",
+        help="Replications per point and policy, or auto: add rounds until --half-width is "
+        "met (default sweep's).",
+    ),
+]
+HalfWidthOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--half-width",
+        metavar="POINTS",
+        help="With -r auto: target CI half-width of the gripping rate, percentage points.",
+    ),
+]
+MaxRepsOpt = Annotated[
+    int | None,
+    typer.Option("--max-replications", metavar="N", help="With -r auto: at most N (30)."),
 ]
 PolicyOpt = Annotated[
     list[str] | None,
@@ -88,6 +110,9 @@ FreshOpt = Annotated[
     bool, typer.Option("--fresh", help="Discard the folder's earlier runs and start over.")
 ]
 NoReportOpt = Annotated[bool, typer.Option("--no-report", help="Do not write report.html.")]
+ForceOpt = Annotated[
+    bool, typer.Option("--force", help="Run even above the work limits (twin.budget).")
+]
 
 
 class RateColumn(ProgressColumn):
@@ -100,8 +125,12 @@ class RateColumn(ProgressColumn):
 
 @contextmanager
 def progress_bar(label: str) -> Iterator[Any]:
-    """A rich progress bar on stderr; yields the study's progress callback."""
-    console = Console(stderr=True)
+    """A rich progress bar on stderr; yields the study's progress callback.
+
+    The bar appears with the first progress report, so a study refused before it opens
+    its folder (a bad plan, a held or damaged folder) prints nothing but its error line.
+    """
+    console = stderr_console()
     bar = Progress(
         TextColumn("[bold]{task.description}"),
         BarColumn(),
@@ -119,6 +148,8 @@ def progress_bar(label: str) -> Iterator[Any]:
     task = bar.add_task(label, total=None, rate=0.0)
 
     def update(done: int, total: int) -> None:
+        if not bar.live.is_started:  # drawn once the study has opened its folder
+            bar.start()
         if done - state["last"] == 1:
             state["ran"] += 1
         state["last"] = done
@@ -126,8 +157,11 @@ def progress_bar(label: str) -> Iterator[Any]:
         rate = state["ran"] / elapsed if state["ran"] and elapsed > 0 else 0.0
         bar.update(task, completed=done, total=max(total, done), rate=rate)
 
-    with bar:
+    try:
         yield update
+    finally:
+        if bar.live.is_started:
+            bar.stop()
 
 
 def _options(
@@ -147,6 +181,88 @@ def _load(scenario: str, sets: list[str] | None) -> Scenario:
     return load_scenario(scenario, parse_sets(sets or []))
 
 
+def _check_work(
+    sc: Scenario,
+    reps: int | str | None,
+    policies: int,
+    force: bool,
+    extra_points: int = 1,
+    grid: dict[str, Any] | None = None,
+) -> None:
+    """Before planning: at least 2 replications (every study reports CIs), and the study
+    within the work limits of :mod:`twin.budget` unless --force."""
+    sweep = sc.sweep
+    n = reps if reps is not None else (sweep.replications if sweep else 5)
+    if n == AUTO:
+        n = sweep.max_replications if sweep and sweep.max_replications else 30
+    elif isinstance(n, int) and n < 2:
+        raise UserError(
+            f"--replications: {n} is not allowed; a confidence interval needs at least 2 "
+            "replications; give -r 2 or more"
+        )
+    if grid is None:
+        grid = dict(sweep.grid) if sweep else {}
+    check_study(sc, grid, policies, int(n), force, extra_points)
+
+
+def _policy_count(sc: Scenario, policy: list[str] | None) -> int:
+    return len(policy or (sc.sweep.policies if sc.sweep else ()) or [sc.policy])
+
+
+def _replications(value: str | None) -> int | str | None:
+    """``--replications``: a whole number >= 1, or auto."""
+    if value is None:
+        return None
+    text = value.strip().lower()
+    if text == AUTO:
+        return AUTO
+    try:
+        return int(text)
+    except ValueError:
+        raise UserError(
+            f"--replications: '{value}' is not allowed; give a whole number >= 1 or auto"
+        ) from None
+
+
+def _with_precision(
+    sc: Scenario, replications: str | None, half_width: float | None, most: int | None
+) -> tuple[Scenario, int | str | None]:
+    """The scenario with -r auto's settings in its sweep section (where every study reads
+    them), and the replications to pass on."""
+    reps = _replications(replications)
+    if reps != AUTO and half_width is None and most is None:
+        return sc, reps
+    sets: dict[str, Any] = {"sweep.replications": reps} if reps is not None else {}
+    if half_width is not None:
+        sets["sweep.half_width"] = half_width
+    if most is not None:
+        sets["sweep.max_replications"] = most
+    try:
+        sc = with_overrides(sc, sets)
+    except ScenarioError as e:
+        raise UserError(str(e)) from None
+    auto = sc.sweep is not None and sc.sweep.replications == AUTO
+    if not auto:
+        which = "--half-width" if half_width is not None else "--max-replications"
+        raise UserError(f"{which}: only with --replications auto")
+    return sc, None
+
+
+def _precision_line(out: Path) -> str | None:
+    try:
+        p = json.loads((out / "meta.json").read_text(encoding="utf-8")).get("precision")
+    except (OSError, ValueError):
+        return None
+    if not p:
+        return None
+    state = "met at every point" if p["reached"] else f"not met at {p['points_short']} point(s)"
+    return (
+        f"replications: {p['replications']} (rounds {', '.join(map(str, p['rounds']))}); "
+        f"target half-width {p['target_half_width']:g} points {state}; widest "
+        f"{p['half_width_max']:.2f} points"
+    )
+
+
 def _check_out(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; give a folder")
@@ -156,7 +272,7 @@ def _check_out(out: Path) -> None:
 def _report(out: Path, skip: bool) -> None:
     if skip:
         return
-    err = Console(stderr=True, highlight=False)
+    err = stderr_console()
     try:
         from reports import build_report
     except ImportError as e:
@@ -200,13 +316,6 @@ def _sweep_table(tables: Tables, grid: list[str], limit: int = 30) -> Table:
     return t
 
 
-def _out_console() -> Console:
-    console = Console(highlight=False)
-    if not console.is_terminal:
-        console.width = max(console.width, 120)
-    return console
-
-
 @app.command("sweep")
 def sweep(
     scenario: ScenarioArg,
@@ -215,18 +324,25 @@ def sweep(
     backend: BackendOpt = Backend.local,
     address: AddressOpt = None,
     replications: RepsOpt = None,
+    half_width: HalfWidthOpt = None,
+    max_replications: MaxRepsOpt = None,
     sets: SetOpt = None,
     policy: PolicyOpt = None,
     fresh: FreshOpt = False,
     no_report: NoReportOpt = False,
+    force: ForceOpt = False,
 ) -> None:
     """Run a study: the sweep grid x policies x replications (common random numbers)."""
-    sc = _load(scenario, sets)
-    plan = build_plan(sc, policies=policy, replications=replications)
+    sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
+    _check_work(sc, reps, _policy_count(sc, policy), force)
+    plan = build_plan(sc, policies=policy, replications=reps)
     _check_out(out)
     with progress_bar("sweep") as update:
         tables = run_sweep(plan, out, _options(workers, backend, address, fresh, update))
-    _out_console().print(_sweep_table(tables, list(plan.grid)))
+    stdout_console().print(_sweep_table(tables, list(plan.grid)))
+    line = _precision_line(out)
+    if line:
+        note(line)
     _report(out, no_report)
 
 
@@ -242,18 +358,32 @@ def size(
     backend: BackendOpt = Backend.local,
     address: AddressOpt = None,
     replications: RepsOpt = None,
+    half_width: HalfWidthOpt = None,
+    max_replications: MaxRepsOpt = None,
     sets: SetOpt = None,
     policy: PolicyOpt = None,
     fresh: FreshOpt = False,
     no_report: NoReportOpt = False,
+    layout: Annotated[
+        str,
+        typer.Option(
+            "--layout",
+            help="extend: lengthen the belt for more robots; share: keep the belt, narrower "
+            "workspaces.",
+        ),
+    ] = "extend",
+    force: ForceOpt = False,
 ) -> None:
     """The smallest robot count reaching a target gripping rate with a confidence."""
-    sc = _load(scenario, sets)
+    sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
+    grid = sc.sweep.grid if sc.sweep else {}
+    counts = 1 if COUNT in grid else max(8, 2 * sc.robots.count)  # what run_size adds
+    _check_work(sc, reps, _policy_count(sc, policy), force, counts * (1 if MTBF in grid else 2))
     _check_out(out)
     opts = _options(workers, backend, address, fresh, None, confidence)
     with progress_bar("size") as update:
         opts.progress = update
-        tables, sizing = run_size(sc, out, target, opts, policy, replications)
+        tables, sizing = run_size(sc, out, target, opts, policy, reps, layout)
     rows = pd.DataFrame(sizing["rows"])
     rows = rows[rows[MTBF] == 0] if MTBF in rows else rows
     t = Table(
@@ -273,9 +403,12 @@ def size(
             _g(r["gripping_rate_mean"], r["ci_low"], r["ci_high"]),
             "yes" if r["reached"] else "no",
         )
-    console = _out_console()
+    console = stdout_console()
     console.print(t)
     console.print(sizing["text"])
+    line = _precision_line(out)
+    if line:
+        note(line)
     _report(out, no_report)
 
 
@@ -297,15 +430,23 @@ def mix(
     sets: SetOpt = None,
     fresh: FreshOpt = False,
     no_report: NoReportOpt = False,
+    force: ForceOpt = False,
 ) -> None:
     """Search the best per-robot mix of dispatching rules (exhaustive or GRASP)."""
     sc = _load(scenario, sets)
+    reps = _replications(replications)
+    if reps == AUTO or (reps is None and sc.sweep is not None and sc.sweep.replications == AUTO):
+        raise UserError(
+            "--replications: auto is not for mix (every mix is scored on the same fixed "
+            "replications); give a number, e.g. -r 5"
+        )
+    _check_work(sc, reps, budget, force, grid={})  # a mix search sweeps no grid
     _check_out(out)
     names = [r for r in (rules or "").split(",") if r.strip()] or None
     opts = _options(workers, backend, address, fresh, None)
     with progress_bar("mix") as update:
         opts.progress = update
-        _, result = run_mix(sc, out, opts, names, replications, budget)
+        _, result = run_mix(sc, out, opts, names, reps, budget)
     t = Table(
         title=f"Best rule mixes ({result['method']}, {result['evaluated']} evaluated; "
         "gripping rate %, 95 % CI)",
@@ -316,5 +457,5 @@ def mix(
     t.add_column("G %", justify="right")
     for i, r in enumerate(result["ranked"][:10], start=1):
         t.add_row(str(i), r["mix"], _g(r["gripping_rate_mean"], r["ci_low"], r["ci_high"]))
-    _out_console().print(t)
+    stdout_console().print(t)
     _report(out, no_report)

@@ -172,7 +172,7 @@ def rule_counts(scenario: Scenario, hdqn: str | Path, seed: int) -> pd.DataFrame
 
     decisions = simulate(scenario, HDQNPolicy.load(hdqn), seed=seed).decisions
     counts = decisions[["robot", "rule", "count"]].copy()
-    counts["robot"] = counts["robot"].astype(int) + 1  # robot 1 first, as the report names them
+    counts["robot"] = counts["robot"].astype(int)  # the records number robots from 1
     return counts.sort_values(["robot", "rule"]).reset_index(drop=True)
 
 

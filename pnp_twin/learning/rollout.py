@@ -11,9 +11,9 @@ iteration (Bertsekas' rollout; Lagoudakis and Parr's "RL as classification using
 2. at each decision in the labelling window, for each distinct part the rules would pick,
    the run is replayed with that choice and then the base rule, over ``futures`` sampled
    futures (parts already on the belt stay, later arrivals are redrawn from other seeds:
-   :class:`twin.line.Line` ``future=``), the same futures for every choice (common random
-   numbers); the label of a rule is the mean number of parts fed in
-   [t - line transit, t + horizon) that end up gripped;
+   :func:`twin.feeder.resampled`, given to :class:`twin.line.Line` as ``parts=``), the
+   same futures for every choice (common random numbers); the label of a rule is the mean
+   number of parts fed in [t - line transit, t + horizon) that end up gripped;
 3. the label rows are the deciding robot's observation (the whole belt image, parts and
    claimed parts) with its one-hot index, and the advantage of each rule over the base rule.
 
@@ -33,6 +33,7 @@ from pnp_twin.learning.envs.driver import EnvError, check_rules
 from policies.rules import RULES
 from twin.camera import BeltCamera
 from twin.decision import Decision, RobotSpec
+from twin.feeder import resampled
 from twin.line import Line
 from twin.scenario import Scenario
 
@@ -144,7 +145,7 @@ class _Behaviour:
         if self.others and self.explore_rng.random() < self.s.explore:
             rule = self.others[int(self.explore_rng.integers(len(self.others)))]
         k = picks[self.s.rules.index(rule)]
-        self.records.append(_Record(d.time, d.robot, picks, self.camera.belt()))
+        self.records.append(_Record(d.time, d.robot, picks, self.camera.belt(d.time)))
         self.chosen.append(k)
         return k
 
@@ -168,7 +169,7 @@ def label_episode(scenario: Scenario, seed: int, settings: LabelSettings) -> Lab
     behaviour = _Behaviour(s, np.random.default_rng([seed, 1]))
     line = Line(scenario, behaviour, seed=seed, duration=s.episode_time)
     camera = BeltCamera(scenario, s.channels)
-    camera.attach(line)
+    camera.attach(line.belt)
     behaviour.camera = camera
     line.run()
     transit = line.last_end / scenario.belt.speed
@@ -179,14 +180,14 @@ def label_episode(scenario: Scenario, seed: int, settings: LabelSettings) -> Lab
         lo, hi = rec.time - transit, rec.time + s.horizon
         total = dict.fromkeys(rec.picks, 0.0)
         for m in range(s.futures):
-            future = (rec.time, future_seed(seed, j, m))
+            future = resampled(scenario, seed, future_seed(seed, j, m), rec.time, s.episode_time)
             for part in total:
                 run = Line(
                     scenario,
                     _Replay(behaviour.chosen[:j], part, s.base),
                     seed=seed,
                     duration=s.episode_time,
-                    future=future,
+                    parts=future,
                 )
                 run.env.run(until=min(run.end_at, hi + transit))
                 total[part] += _gripped(run, lo, hi)

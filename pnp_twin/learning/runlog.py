@@ -28,7 +28,8 @@ class CsvLog:
     """Rows appended to a CSV file, flushed each time (readable while training)."""
 
     def __init__(self, path: Path, columns: list[str], append: bool) -> None:
-        fresh = not (append and path.is_file())
+        # a file without its header row (killed before the first flush) starts again
+        fresh = not (append and path.is_file() and path.stat().st_size > 0)
         self.file = path.open("w" if fresh else "a", newline="")
         self.writer = csv.writer(self.file)
         if fresh:

@@ -6,29 +6,21 @@ resumed study ends with exactly the tables an uninterrupted one writes.
 
 from __future__ import annotations
 
-import platform
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from pnp_twin.studies.execute import ID_COLUMNS, simulate_spec
-from pnp_twin.studies.journal import write_frame, write_json
 from pnp_twin.studies.plan import RunSpec, StudyPlan
 from pnp_twin.studies.summary import best_policies, paired_differences, summarise
+from twin.output import versions, write_json, write_table
 
-PACKAGES = {
-    "pnp_twin": "pnp-twin",
-    "simpy": "simpy",
-    "numpy": "numpy",
-    "pandas": "pandas",
-    "plotly": "plotly",
-}
+PACKAGES = ("pnp-twin", "simpy", "numpy", "pandas", "plotly")  # what a result depends on
 
 
 @dataclass
@@ -44,17 +36,6 @@ class Tables:
 def now_iso() -> str:
     """The current UTC time, ISO 8601."""
     return datetime.now(UTC).isoformat(timespec="seconds")
-
-
-def versions() -> dict[str, str]:
-    """Versions of Python and the packages a result depends on."""
-    out = {"python": platform.python_version()}
-    for key, dist in PACKAGES.items():
-        try:
-            out[key] = metadata.version(dist)
-        except metadata.PackageNotFoundError:
-            out[key] = "unknown"
-    return out
 
 
 def results_frame(rows: Sequence[dict[str, Any]], grid: Sequence[str]) -> pd.DataFrame:
@@ -83,20 +64,19 @@ def build_tables(
 
 def write_tables(folder: Path, tables: Tables) -> None:
     """results.parquet/.csv, summary.csv, paired.csv, best.csv."""
-    write_frame(folder / "results.parquet", tables.results)
-    write_frame(folder / "results.csv", tables.results)
-    write_frame(folder / "summary.csv", tables.summary)
-    write_frame(folder / "paired.csv", tables.paired)
-    write_frame(folder / "best.csv", tables.best)
+    write_table(tables.results, folder / "results.parquet")
+    write_table(tables.results, folder / "results.csv")
+    write_table(tables.summary, folder / "summary.csv")
+    write_table(tables.paired, folder / "paired.csv")
+    write_table(tables.best, folder / "best.csv")
 
 
 def write_records(folder: Path, spec: RunSpec) -> None:
     """Re-simulate one representative run (deterministic) and keep its record tables."""
     result = simulate_spec(spec)
-    write_frame(folder / "records" / "parts.parquet", result.parts)
-    write_frame(folder / "records" / "spans.parquet", result.spans)
+    write_table(result.parts, folder / "records" / "parts.parquet")
+    write_table(result.spans, folder / "records" / "spans.parquet")
     write_json(
-        folder / "records" / "run.json",
         {
             "run_id": spec.run_id,
             "point": spec.point,
@@ -106,6 +86,7 @@ def write_records(folder: Path, spec: RunSpec) -> None:
             "seed": spec.seed,
             "scenario": spec.scenario.model_dump(mode="json"),
         },
+        folder / "records" / "run.json",
     )
 
 
@@ -132,7 +113,7 @@ def meta(plan: StudyPlan, kind: str, **extra: Any) -> dict[str, Any]:
         "grid": {k: list(v) for k, v in plan.grid.items()},
         "policies": list(plan.policies),
         "runs": len(plan.points) * len(plan.policies) * plan.replications,
-        "versions": versions(),
+        "versions": versions(*PACKAGES),
         "id_columns": list(ID_COLUMNS),
         "argv": sys.argv,
         **extra,

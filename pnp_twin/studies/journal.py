@@ -4,26 +4,41 @@ Each finished run is one small JSON file ``DIR/runs/<run_id>.json``, written ato
 the coordinating process as results arrive, so an interrupted study (Ctrl-C, a killed
 process) loses at most the runs in flight. ``DIR/study.json`` holds the study definition:
 re-running the same command skips finished runs; a different definition in the same folder
-is refused unless the caller asks for a fresh start.
+is refused (naming the fields that changed) unless the caller asks for a fresh start. Only
+the replications may change: earlier runs are kept and new ones added (their seeds do not
+depend on the count, so common random numbers hold).
+
+While a journal is open it holds the folder's lock (:mod:`pnp_twin.studies.lock`), so a
+second process cannot write into the same folder. A fresh start moves the old study aside
+into ``DIR/.replaced/`` and deletes it only once the new study has journaled its first
+run; if the new one fails before that, the old study is put back.
+
+Damaged files: a run file that is not readable JSON (truncated, empty) is deleted and the
+run done again (a warning is logged); a readable run whose values are impossible (an edited
+file: G = 1234.5, a negative count, another run's seed) is refused with one line naming the
+file and the field. A ``study.json`` that cannot be read is refused with one line.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import math
+import re
 import shutil
-from collections.abc import Callable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
-from pnp_twin.studies.plan import StudyError
-from twin.output import write_table, write_text
+from pnp_twin.studies.execute import cell
+from pnp_twin.studies.lock import StudyLock
+from pnp_twin.studies.plan import RunSpec, StudyError
+from twin.output import dumps_json, remove_temporaries, write_json
 
 log = logging.getLogger(__name__)
 
 DEFINITION = "study.json"
+REPLACED = ".replaced"
 OUTPUTS = (
     "runs",
     "records",
@@ -38,77 +53,226 @@ OUTPUTS = (
     "mix.json",
     "report.html",
 )
+REPLICATION_KEYS = ("replications", "precision")  # may change: runs are added or reused
+COUNTS = re.compile(r"parts_\w+|r\d+_(picks|passed_on|lost|missed)|rule_\w+")
+NUMBERS = re.compile(
+    r"gripping_rate|throughput|part_flow|max_throughput|efficiency|utilisation|wall_time"
+    r"|cycle_time_\w+|r\d+_\w+"
+)
+TEXT_FIELDS = ("scenario", "termination")
 
 
-def write_json(path: Path, obj: Any) -> None:
-    """Write ``obj`` as indented JSON, atomically; NaN stays NaN so rows round-trip exactly."""
-    write_text(json.dumps(obj, indent=1, default=str) + "\n", path)
+def _show(value: Any, width: int = 40) -> str:
+    text = json.dumps(value, default=str)
+    return text if len(text) <= width else text[: width - 3] + "..."
 
 
-def write_frame(path: Path, frame: pd.DataFrame) -> None:
-    """Write a DataFrame as Parquet or CSV (by suffix), atomically."""
-    write_table(frame, path)
+def differences(old: Any, new: Any, path: str = "") -> list[tuple[str, Any, Any]]:
+    """The (dotted path, old value, new value) of every leaf that differs."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        out = []
+        for key in sorted(set(old) | set(new), key=str):
+            sub = f"{path}.{key}" if path else str(key)
+            out += differences(old.get(key), new.get(key), sub)
+        return out
+    return [] if old == new else [(path or "definition", old, new)]
 
 
-def _differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
-    keys = sorted(set(old) | set(new))
-    return [k for k in keys if old.get(k) != new.get(k)]
+def changed_text(changes: list[tuple[str, Any, Any]], limit: int = 3) -> str:
+    """``feeder.rate was 10.0, now 12.0; ...`` for the first ``limit`` changes."""
+    parts = [f"{p} was {_show(a)}, now {_show(b)}" for p, a, b in changes[:limit]]
+    more = f"; and {len(changes) - limit} more" if len(changes) > limit else ""
+    return "; ".join(parts) + more
+
+
+def row_problem(row: Any, spec: RunSpec) -> str | None:
+    """Why ``row`` cannot be the journaled result of ``spec`` (None if it can)."""
+    if not isinstance(row, dict):
+        return f"holds {type(row).__name__}, not a run's row"
+    expected = {
+        "run_id": spec.run_id,
+        "point": spec.point,
+        "policy": spec.policy,
+        "replication": spec.replication,
+        "seed": spec.seed,
+        **{p: cell(v) for p, v in spec.values.items()},
+    }
+    for key, want in expected.items():
+        if key not in row:
+            return f"has no '{key}'"
+        if row[key] != want or type(row[key]) is bool:
+            return f"{key} = {_show(row[key])} is not this run's; expected {_show(want)}"
+    if "gripping_rate" not in row:
+        return "has no 'gripping_rate'"
+    for key, value in row.items():
+        if key in expected or key in TEXT_FIELDS:
+            continue
+        problem = _value_problem(key, value)
+        if problem:
+            return f"{key} = {_show(value)} is not allowed; {problem}"
+    picked, presented = row.get("parts_picked"), row.get("parts_presented")
+    if isinstance(picked, int) and isinstance(presented, int) and picked > presented:
+        return f"parts_picked = {picked} is more than parts_presented = {presented}"
+    return None
+
+
+def _value_problem(key: str, value: Any) -> str | None:
+    if isinstance(value, str) and not NUMBERS.fullmatch(key) and not COUNTS.fullmatch(key):
+        return None  # a text column (a label some KPI carries)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return "a number is expected"
+    if math.isnan(value):
+        return None if not COUNTS.fullmatch(key) else "a whole number >= 0 is expected"
+    if COUNTS.fullmatch(key):
+        return None if isinstance(value, int) and value >= 0 else "a whole number >= 0"
+    if key == "gripping_rate" and not 0 <= value <= 100:
+        return "a percentage in [0, 100] is expected"
+    if value < 0:
+        return "a number >= 0 is expected"
+    return None
 
 
 class Journal:
-    """The runs finished so far in one study folder."""
+    """The runs finished so far in one study folder; holds the folder's lock while open."""
 
-    def __init__(self, folder: Path, definition: dict[str, Any], fresh: bool = False) -> None:
+    def __init__(
+        self, folder: Path, definition: dict[str, Any], fresh: bool = False, command: str = ""
+    ) -> None:
         self.folder = Path(folder)
         self.runs = self.folder / "runs"
-        # normalise through JSON so the comparison sees what a rerun will read back
-        definition = json.loads(json.dumps(definition, default=str))
+        self.replaced = self.folder / REPLACED
+        self.lock = StudyLock(self.folder)
+        self.lock.acquire(command)
+        try:
+            self._open(json.loads(dumps_json(definition)), fresh)
+        except BaseException:
+            self.close()
+            raise
+
+    def _open(self, definition: dict[str, Any], fresh: bool) -> None:
+        self._settle_replaced()
         stored = self.folder / DEFINITION
         if fresh:
-            self.clear()
+            self._move_aside()
         elif stored.is_file():
-            old = json.loads(stored.read_text(encoding="utf-8"))
-            if old != definition:
-                changed = ", ".join(_differences(old, definition)) or "the definition"
-                raise StudyError(
-                    f"--out {self.folder}: holds a different study (changed: {changed}); "
-                    f"add --fresh to start it over or choose another folder"
-                )
-        elif self.runs.is_dir() and any(self.runs.iterdir()):
+            self._compare(self._read_definition(stored), definition)
+        elif self.runs.is_dir() and any(self.runs.glob("*.json")):
             raise StudyError(
                 f"--out {self.folder}: has runs/ but no {DEFINITION}; add --fresh to start over"
             )
         self.runs.mkdir(parents=True, exist_ok=True)
-        write_json(stored, definition)
-        for tmp in self.runs.glob(".*.tmp"):  # left by a write that was killed mid-way
-            tmp.unlink(missing_ok=True)
+        write_json(definition, stored)
+        for where in (self.folder, self.runs, self.folder / "records"):
+            for tmp in remove_temporaries(where):  # left by a write that was killed mid-way
+                log.info("removed %s, left by an interrupted write", tmp)
 
-    def clear(self) -> None:
-        """Remove the study outputs of this folder (nothing else in it)."""
+    def _read_definition(self, stored: Path) -> dict[str, Any]:
+        try:
+            old = json.loads(stored.read_text(encoding="utf-8"))
+        except (ValueError, UnicodeDecodeError) as e:
+            why = str(e).splitlines()[0] if str(e) else type(e).__name__
+            raise StudyError(
+                f"{stored}: is damaged ({why}); add --fresh to start the study over"
+            ) from None
+        if not isinstance(old, dict):
+            raise StudyError(f"{stored}: is damaged (not an object); add --fresh to start over")
+        return old
+
+    def _compare(self, old: dict[str, Any], new: dict[str, Any]) -> None:
+        def without(d: dict[str, Any]) -> dict[str, Any]:
+            return {k: v for k, v in d.items() if k not in REPLICATION_KEYS}
+
+        changes = differences(without(old), without(new))
+        if changes:
+            raise StudyError(
+                f"--out {self.folder}: holds a different study ({changed_text(changes)}); "
+                f"add --fresh to start it over or choose another folder"
+            )
+        for key in REPLICATION_KEYS:
+            if old.get(key) != new.get(key):
+                log.info(
+                    "%s: %s was %s, now %s; earlier runs are kept",
+                    self.folder,
+                    key,
+                    _show(old.get(key)),
+                    _show(new.get(key)),
+                )
+
+    def _move_aside(self) -> None:
+        """Move the old study's outputs into .replaced/ (deleted once the new one runs)."""
+        shutil.rmtree(self.replaced, ignore_errors=True)
+        present = [n for n in OUTPUTS if (self.folder / n).exists()]
+        if not present:
+            return
+        self.replaced.mkdir()
+        for name in present:
+            (self.folder / name).rename(self.replaced / name)
+        log.info("moved the old study in %s aside", self.folder)
+
+    def _settle_replaced(self) -> None:
+        """A --fresh start that was killed: keep the new study if it ran, else the old."""
+        if not self.replaced.is_dir():
+            return
+        if self.runs.is_dir() and any(self.runs.glob("*.json")):
+            self.started()
+        else:
+            self.restore()
+
+    def started(self) -> None:
+        """The new study has journaled a run: delete the study a fresh start moved aside."""
+        if self.replaced.is_dir():
+            shutil.rmtree(self.replaced, ignore_errors=True)
+            log.info("deleted the old study of %s", self.folder)
+
+    def restore(self) -> None:
+        """Put back the study a fresh start moved aside (the new one never ran)."""
+        if not self.replaced.is_dir():
+            return
         for name in OUTPUTS:
             p = self.folder / name
-            if p.is_dir():
-                shutil.rmtree(p)
-            elif p.exists():
-                p.unlink()
-        log.info("cleared study folder %s", self.folder)
+            if (self.replaced / name).exists():
+                if p.is_dir():
+                    shutil.rmtree(p)
+                elif p.exists():
+                    p.unlink()
+                (self.replaced / name).rename(p)
+        shutil.rmtree(self.replaced, ignore_errors=True)
+        log.info("restored the earlier study of %s", self.folder)
+
+    def close(self) -> None:
+        """Release the folder's lock."""
+        self.lock.release()
+
+    def path(self, run_id: str) -> Path:
+        return self.runs / f"{run_id}.json"
 
     def done(self) -> set[str]:
-        """Ids of the finished runs."""
+        """Ids of the journaled runs (not yet read, so not yet checked)."""
         return {p.stem for p in self.runs.glob("*.json")}
 
-    def record(self, row: dict[str, Any]) -> None:
-        """Journal one finished run (atomically)."""
-        write_json(self.runs / f"{row['run_id']}.json", row)
+    def record(self, row: Mapping[str, Any]) -> None:
+        """Journal one finished run (atomically; NaN kept so the row reads back exactly)."""
+        write_json(row, self.path(str(row["run_id"])), indent=1, keep_nan=True)
 
-    def read(self, run_id: str) -> dict[str, Any]:
-        """One finished run's row."""
-        return json.loads((self.runs / f"{run_id}.json").read_text(encoding="utf-8"))
+    def load(self, spec: RunSpec) -> dict[str, Any] | None:
+        """``spec``'s journaled row, checked; None if not run yet or unreadable (deleted)."""
+        path = self.path(spec.run_id)
+        try:
+            row = json.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            return None
+        except (ValueError, UnicodeDecodeError) as e:
+            why = str(e).splitlines()[0] if str(e) else type(e).__name__
+            log.warning("%s: is damaged (%s); running it again", path, why)
+            path.unlink(missing_ok=True)
+            return None
+        problem = row_problem(row, spec)
+        if problem:
+            raise StudyError(f"{path}: {problem}; delete the file to run it again")
+        return row
 
-    def rows(self, keep: Callable[[str], bool] | None = None) -> list[dict[str, Any]]:
-        """Every finished run's row (those whose id ``keep`` accepts), in id order."""
-        out = []
-        for p in sorted(self.runs.glob("*.json")):
-            if keep is None or keep(p.stem):
-                out.append(json.loads(p.read_text(encoding="utf-8")))
-        return out
+    def rows(self, specs: Iterable[RunSpec]) -> list[dict[str, Any] | None]:
+        """The checked row of each spec (None where not run yet)."""
+        return [self.load(s) for s in specs]

@@ -11,9 +11,10 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import math
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 from pydantic import BaseModel
@@ -22,7 +23,7 @@ from pnp_twin.studies.seeds import replication_seeds
 from policies import make_policy
 from twin.errors import UserError
 from twin.loader import ScenarioError, with_overrides
-from twin.scenario import Scenario
+from twin.scenario import Scenario, SweepConfig, duplicate_policy
 
 RESERVED = {
     "sweep": "the study itself cannot be swept",
@@ -33,8 +34,25 @@ RESERVED = {
 }
 
 
+AUTO = "auto"
+DEFAULT_MAX_REPLICATIONS = 30
+FIRST_ROUND = 3  # replications of the first round of an "auto" study
+
+
 class StudyError(UserError):
     """A mistake in a study definition or its output folder; the message is one line."""
+
+
+@dataclass(frozen=True)
+class Precision:
+    """``replications = "auto"``: add replications in rounds until the CI half-width of
+    ``kpi`` (the mean's, at the study's confidence) is at most ``half_width`` at every
+    point x policy, or ``max_replications`` is reached."""
+
+    half_width: float
+    max_replications: int
+    kpi: str = "gripping_rate"
+    first_round: int = FIRST_ROUND
 
 
 @dataclass(frozen=True)
@@ -61,6 +79,11 @@ class StudyPlan:
     master_seed: int
     points: tuple[dict[str, Any], ...]
     scenarios: tuple[Scenario, ...] = field(repr=False)
+    precision: Precision | None = None
+
+    def with_replications(self, n: int) -> StudyPlan:
+        """The same study with ``n`` replications (replication k keeps its seed)."""
+        return replace(self, replications=n)
 
     @property
     def seeds(self) -> list[int]:
@@ -84,8 +107,9 @@ class StudyPlan:
             "scenario": self.scenario.model_dump(mode="json", exclude={"source_dir"}),
             "grid": {k: list(v) for k, v in self.grid.items()},
             "policies": list(self.policies),
-            "replications": self.replications,
+            "replications": AUTO if self.precision else self.replications,
             "master_seed": self.master_seed,
+            **({"precision": asdict(self.precision)} if self.precision else {}),
         }
 
 
@@ -138,18 +162,18 @@ def build_plan(
     scenario: Scenario,
     grid: Mapping[str, Sequence[Any]] | None = None,
     policies: Sequence[str] | None = None,
-    replications: int | None = None,
+    replications: int | str | None = None,
     duration: float | None = None,
     warmup: float | None = None,
+    half_width: float | None = None,
+    max_replications: int | None = None,
 ) -> StudyPlan:
     """Validate a study; arguments override the scenario's ``sweep`` section."""
     sweep = scenario.sweep
     grid = dict(grid if grid is not None else (sweep.grid if sweep else {}))
     if policies is None or len(policies) == 0:
         policies = list(sweep.policies) if sweep and sweep.policies else [scenario.policy]
-    reps = replications or (sweep.replications if sweep else 5)
-    if reps < 1:
-        raise StudyError(f"--replications: {reps} is not allowed; give 1 or more")
+    reps, precision = _replications(sweep, replications, half_width, max_replications)
     base: dict[str, Any] = {}
     d = duration if duration is not None else (sweep.duration if sweep else None)
     w = warmup if warmup is not None else (sweep.warmup if sweep else None)
@@ -167,8 +191,9 @@ def build_plan(
             raise StudyError(problem)
         if isinstance(values, str | bytes) or not isinstance(values, Sequence) or not values:
             raise StudyError(f"sweep.grid.{path}: {values!r} is not a non-empty list of values")
-    if len(set(policies)) != len(policies):
-        raise StudyError(f"sweep.policies: {list(policies)} names a policy twice")
+    twice = duplicate_policy(policies)
+    if twice:
+        raise StudyError(f"--policy: {twice} (names are case-insensitive); name each policy once")
     points = expand_grid(grid)
     scenarios = []
     for point in points:
@@ -190,4 +215,41 @@ def build_plan(
         master_seed=scenario.seed,
         points=tuple(points),
         scenarios=tuple(scenarios),
+        precision=precision,
     )
+
+
+def _replications(
+    sweep: SweepConfig | None,
+    replications: int | str | None,
+    half_width: float | None,
+    max_replications: int | None,
+) -> tuple[int, Precision | None]:
+    """The (first) replication count and, for "auto", the precision rule."""
+    reps = replications if replications is not None else (sweep.replications if sweep else 5)
+    if reps != AUTO:
+        if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
+            raise StudyError(f"--replications: {reps!r} is not allowed; give 1 or more, or auto")
+        if half_width is not None or max_replications is not None:
+            which = "--half-width" if half_width is not None else "--max-replications"
+            raise StudyError(f"{which}: only with --replications auto (now {reps})")
+        return reps, None
+    hw = half_width if half_width is not None else (sweep.half_width if sweep else None)
+    if hw is None:
+        raise StudyError(
+            "--half-width: replications = auto needs the target CI half-width of the gripping "
+            "rate, in percentage points (e.g. --half-width 0.5 or sweep.half_width)"
+        )
+    if not (isinstance(hw, int | float) and math.isfinite(hw) and 0 < hw <= 100):
+        raise StudyError(f"--half-width: {hw!r} is not allowed; give 0 < points <= 100")
+    top = (
+        max_replications
+        if max_replications is not None
+        else (
+            sweep.max_replications if sweep and sweep.max_replications else DEFAULT_MAX_REPLICATIONS
+        )
+    )
+    if not 2 <= top <= 10_000:
+        raise StudyError(f"--max-replications: {top} is not allowed; give 2 to 10000")
+    precision = Precision(float(hw), int(top))
+    return min(precision.first_round, top), precision

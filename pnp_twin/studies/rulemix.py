@@ -12,7 +12,9 @@ search, as Huang et al.) runs within a budget of mixes:
    (the restricted candidate list) and draw one at random from the search generator;
 3. local search: best improvement over the mixes that change one robot's rule, until none
    improves;
-4. repeat 2-3 while the budget lasts; the ranking covers every mix evaluated.
+4. repeat 2-3 while the budget lasts, or until ``MAX_STALE`` iterations in a row evaluate no
+   new mix (every mix they reach is known: the search has converged, which a small mix space
+   reaches before any budget); the ranking covers every mix evaluated.
 
 The search is deterministic for a master seed (its generator is a child stream of it), so a
 resumed search replays the same path and reuses the journaled runs.
@@ -29,11 +31,11 @@ from typing import Any
 import numpy as np
 
 from pnp_twin.studies.folder import Tables
-from pnp_twin.studies.journal import write_json
 from pnp_twin.studies.plan import StudyError, StudyPlan, build_plan
 from pnp_twin.studies.runner import Options, Session, finish, open_session
 from pnp_twin.studies.seeds import search_rng
 from policies import RULES
+from twin.output import write_json
 from twin.scenario import Scenario
 from twin.stats import t_interval
 
@@ -42,6 +44,7 @@ log = logging.getLogger(__name__)
 EXHAUSTIVE_LIMIT = 250
 DEFAULT_BUDGET = 150
 ALPHA = 0.3
+MAX_STALE = 20  # GRASP stops when this many constructions in a row find no new mix
 
 
 def mix_name(rules: Sequence[str]) -> str:
@@ -62,6 +65,7 @@ class MixSearch:
         self.order: list[str] = []
         self.scores: dict[str, float] = {}
         self.rows: dict[str, list[dict[str, Any]]] = {}
+        self.stopped = "exhausted"  # why the search ended: exhausted, budget or converged
 
     @property
     def left(self) -> int:
@@ -97,32 +101,47 @@ def grasp(
     """Greedy randomised construction + best-improvement local search, within the budget."""
     uniform = search.evaluate([mix_name([r] * n) for r in rules])
     start = max(uniform, key=uniform.__getitem__).split(",")
-    while search.left > 0:
-        current = list(start)
-        for i in range(n):  # construction, upstream first
-            options = {r: mix_name(current[:i] + [r] + current[i + 1 :]) for r in rules}
-            scores = search.evaluate(list(options.values()))
-            scored = {r: scores[m] for r, m in options.items() if m in scores}
-            if not scored:
-                return
-            top, low = max(scored.values()), min(scored.values())
-            rcl = [r for r, s in scored.items() if s >= top - alpha * (top - low)]
-            current[i] = rcl[int(rng.integers(len(rcl)))]
-        score = search.scores[mix_name(current)]
-        while search.left > 0:  # local search: best single-robot change
-            near = [
-                mix_name(current[:i] + [r] + current[i + 1 :])
-                for i in range(n)
-                for r in rules
-                if r != current[i]
-            ]
-            scores = search.evaluate(near)
-            if not scores:
-                return
-            best = max(scores, key=scores.__getitem__)
-            if scores[best] <= score:
-                break
-            current, score = best.split(","), scores[best]
+    stale = 0  # constructions in a row that found no mix not yet evaluated
+    while search.left > 0 and stale < MAX_STALE:
+        known = len(search.order)
+        _construct_and_improve(search, rules, n, rng, alpha, list(start))
+        stale = stale + 1 if len(search.order) == known else 0
+    search.stopped = "budget" if search.left <= 0 else "converged"
+
+
+def _construct_and_improve(
+    search: MixSearch,
+    rules: Sequence[str],
+    n: int,
+    rng: np.random.Generator,
+    alpha: float,
+    current: list[str],
+) -> None:
+    """One GRASP iteration: randomised greedy construction, then local search."""
+    for i in range(n):  # construction, upstream first
+        options = {r: mix_name(current[:i] + [r] + current[i + 1 :]) for r in rules}
+        scores = search.evaluate(list(options.values()))
+        scored = {r: scores[m] for r, m in options.items() if m in scores}
+        if not scored:
+            return
+        top, low = max(scored.values()), min(scored.values())
+        rcl = [r for r, s in scored.items() if s >= top - alpha * (top - low)]
+        current[i] = rcl[int(rng.integers(len(rcl)))]
+    score = search.scores[mix_name(current)]
+    while search.left > 0:  # local search: best single-robot change
+        near = [
+            mix_name(current[:i] + [r] + current[i + 1 :])
+            for i in range(n)
+            for r in rules
+            if r != current[i]
+        ]
+        scores = search.evaluate(near)
+        if not scores:
+            return
+        best = max(scores, key=scores.__getitem__)
+        if scores[best] <= score:
+            break
+        current, score = best.split(","), scores[best]
 
 
 def rank(search: MixSearch, confidence: float) -> list[dict[str, Any]]:
@@ -132,6 +151,28 @@ def rank(search: MixSearch, confidence: float) -> list[dict[str, Any]]:
         mean, low, high = t_interval([r["gripping_rate"] for r in search.rows[m]], confidence)
         out.append({"mix": m, "gripping_rate_mean": mean, "ci_low": low, "ci_high": high})
     return sorted(out, key=lambda r: -r["gripping_rate_mean"])
+
+
+def margin(
+    search: MixSearch, ranked: Sequence[dict[str, Any]], confidence: float
+) -> dict[str, Any] | None:
+    """The best mix minus the runner-up, paired by replication (common random numbers)."""
+    if len(ranked) < 2:
+        return None
+    first, second = ranked[0]["mix"], ranked[1]["mix"]
+    by_rep = {r["replication"]: r["gripping_rate"] for r in search.rows[second]}
+    diff = [r["gripping_rate"] - by_rep[r["replication"]] for r in search.rows[first]]
+    mean, low, high = t_interval(diff, confidence)
+    return {
+        "best": first,
+        "runner_up": second,
+        "diff_mean": mean,
+        "ci_low": low,
+        "ci_high": high,
+        "n": len(diff),
+        # apart only when the paired interval exists and excludes zero
+        "distinguishable": bool(np.isfinite(low) and low > 0),
+    }
 
 
 def run_mix(
@@ -177,11 +218,13 @@ def run_mix(
         "rules": rules,
         "ranked": ranked,
         "best": ranked[0]["mix"],
+        "margin": margin(search, ranked, options.confidence),
         "evaluated": len(search.order),
         "budget": search.budget,
+        "stopped": search.stopped,
         "replications": base.replications,
     }
     tables = finish(session, plan, "mix", rows, {"method": method, "rules": rules})
-    write_json(out / "mix.json", mix)
+    write_json(mix, out / "mix.json", keep_nan=True)
     log.info("mix search (%s): best %s of %d mixes", method, mix["best"], len(search.order))
     return tables, mix

@@ -1,8 +1,16 @@
-"""Running a study into its folder: plan -> journal -> backend -> tables -> files."""
+"""Running a study into its folder: plan -> journal -> backend -> tables -> files.
+
+A session holds the folder's lock from :func:`open_session` to :func:`finish` (or to the
+first error). With ``replications = "auto"`` (:class:`~pnp_twin.studies.plan.Precision`)
+:func:`run_plan` runs the replications in rounds until every point x policy's CI
+half-width of the gripping rate meets the target, and ``meta.json`` states the precision
+reached (``precision``, see ``docs/study_format.md``).
+"""
 
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -19,8 +27,10 @@ from pnp_twin.studies.folder import (
     write_records,
     write_tables,
 )
-from pnp_twin.studies.journal import Journal, write_json
+from pnp_twin.studies.journal import Journal
 from pnp_twin.studies.plan import RunSpec, StudyPlan
+from twin.output import write_json
+from twin.stats import t_interval
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +63,7 @@ class Session:
     ran: int = 0
     started: float = field(default_factory=time.perf_counter)
     started_at: str = field(default_factory=now_iso)
+    precision: dict[str, Any] | None = None
 
     def plan_more(self, n: int) -> None:
         """Announce ``n`` more runs (the rule-mix search plans batch by batch)."""
@@ -65,21 +76,40 @@ class Session:
 
     def run(self, specs: Sequence[RunSpec]) -> list[dict[str, Any]]:
         """Rows of ``specs`` (in order), running those not yet journaled."""
-        finished = self.journal.done()
-        todo = [s for s in specs if s.run_id not in finished]
+        try:
+            return self._run(specs)
+        except BaseException:
+            if self.ran == 0:  # a fresh start that never ran: the old study comes back
+                self.journal.restore()
+            self.close()
+            raise
+
+    def _run(self, specs: Sequence[RunSpec]) -> list[dict[str, Any]]:
+        found = self.journal.rows(specs)
+        todo = [s for s, row in zip(specs, found, strict=True) if row is None]
         self.skipped += len(specs) - len(todo)
         self.done += len(specs) - len(todo)
         self._report()
 
         def on_row(row: dict[str, Any]) -> None:
             self.journal.record(row)
+            if self.ran == 0:
+                self.journal.started()
             self.done += 1
             self.ran += 1
             self._report()
 
         o = self.options
         run_specs(todo, on_row, o.backend, o.workers, o.address)
-        return [self.journal.read(s.run_id) for s in specs]
+        rows = self.journal.rows(specs)
+        missing = [s.run_id for s, row in zip(specs, rows, strict=True) if row is None]
+        if missing:
+            raise RuntimeError(f"runs not journaled: {', '.join(missing[:3])}")
+        return [row for row in rows if row is not None]
+
+    def close(self) -> None:
+        """Release the folder (its lock); the session cannot run after this."""
+        self.journal.close()
 
     def meta_extra(self) -> dict[str, Any]:
         o = self.options
@@ -93,6 +123,7 @@ class Session:
             "confidence": o.confidence,
             "runs_skipped": self.skipped,
             "runs_executed": self.ran,
+            **({"precision": self.precision} if self.precision else {}),
         }
 
 
@@ -101,7 +132,68 @@ def open_session(
 ) -> Session:
     """Open (or resume) the study folder ``out`` for ``plan``."""
     definition = {"kind": kind, **plan.definition(), **(extra or {})}
-    return Session(Journal(Path(out), definition, fresh=options.fresh), options)
+    journal = Journal(Path(out), definition, fresh=options.fresh, command=options.command)
+    return Session(journal, options)
+
+
+def half_widths(
+    rows: Sequence[dict[str, Any]], kpi: str, confidence: float
+) -> dict[tuple[int, str], float]:
+    """The CI half-width of ``kpi``'s mean at each (point, policy); NaN below 2 values."""
+    values: dict[tuple[int, str], list[float]] = {}
+    for r in rows:
+        values.setdefault((int(r["point"]), str(r["policy"])), []).append(float(r[kpi]))
+    out = {}
+    for key, xs in values.items():
+        _, low, high = t_interval(xs, confidence)
+        out[key] = (high - low) / 2.0
+    return out
+
+
+def next_count(n: int, widths: Sequence[float], target: float, top: int) -> int:
+    """Replications for the next round: the usual n (h / h*)^2 estimate, at most doubling."""
+    need = n + 1
+    for h in widths:
+        if math.isfinite(h) and h > target:
+            need = max(need, math.ceil(n * (h / target) ** 2))
+    return min(top, max(n + 1, min(2 * n, need)))
+
+
+def run_plan(session: Session, plan: StudyPlan) -> tuple[StudyPlan, list[dict[str, Any]]]:
+    """Run ``plan`` (in rounds if its replications are "auto"); the plan as run and rows."""
+    specs = plan.specs()
+    session.plan_more(len(specs))
+    rows = session.run(specs)
+    p = plan.precision
+    if p is None:
+        return plan, rows
+    rounds = [plan.replications]
+    while True:
+        widths = half_widths(rows, p.kpi, session.options.confidence)
+        short = [h for h in widths.values() if not h <= p.half_width]
+        n = plan.replications
+        if not short or n >= p.max_replications:
+            break
+        plan = plan.with_replications(next_count(n, short, p.half_width, p.max_replications))
+        added = [s for s in plan.specs() if s.replication >= n]
+        session.plan_more(len(added))
+        rows += session.run(added)
+        rounds.append(plan.replications)
+        log.info("replications: round %d, %d per point", len(rounds), plan.replications)
+    worst = max(widths, key=lambda k: widths[k] if math.isfinite(widths[k]) else math.inf)
+    session.precision = {
+        "kpi": p.kpi,
+        "target_half_width": p.half_width,
+        "max_replications": p.max_replications,
+        "confidence": session.options.confidence,
+        "replications": plan.replications,
+        "rounds": rounds,
+        "reached": not short,
+        "points_short": len(short),
+        "half_width_max": widths[worst],
+        "worst": {"point": worst[0], "policy": worst[1]},
+    }
+    return plan, rows
 
 
 def finish(
@@ -117,7 +209,9 @@ def finish(
     write_tables(folder, tables)
     write_records(folder, representative(plan, tables.best))
     extra = {**session.meta_extra(), **(extra_meta or {})}
-    write_json(folder / "meta.json", meta(plan, kind, **extra))
+    write_json(meta(plan, kind, **extra), folder / "meta.json", keep_nan=True)
+    session.journal.started()
+    session.close()
     log.info("study %s: %d runs (%d resumed) in %s", kind, len(rows), session.skipped, folder)
     return tables
 
@@ -125,7 +219,8 @@ def finish(
 def run_sweep(plan: StudyPlan, out: Path, options: Options) -> Tables:
     """Run every point x policy x replication of ``plan`` into ``out``."""
     session = open_session(out, plan, "sweep", options)
-    specs = plan.specs()
-    session.plan_more(len(specs))
-    rows = session.run(specs)
-    return finish(session, plan, "sweep", rows)
+    try:
+        plan, rows = run_plan(session, plan)
+        return finish(session, plan, "sweep", rows)
+    finally:
+        session.close()

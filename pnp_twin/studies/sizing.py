@@ -13,6 +13,11 @@ and MTTR or, when it has none, the assumption of a gripper jam every 10 minutes 
 taken without failures; ``breakdown`` gives the count needed with them, and what one robot
 down does to the answer (the gripping rate of N - 1 robots: a stopped robot's workspace is
 just belt the parts pass through).
+
+Layout (``--layout``): more robots need belt. ``extend`` (the default) keeps each workspace's
+length and lengthens the belt to fit the largest count; ``share`` keeps the belt and the
+stretch the scenario's robots cover, and divides it among N narrower workspaces (length
+(span - (N - 1) gap) / N). ``sizing.json`` states the choice and each count's layout.
 """
 
 from __future__ import annotations
@@ -20,16 +25,17 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
-from pnp_twin.studies.folder import Tables
-from pnp_twin.studies.journal import write_json
-from pnp_twin.studies.plan import StudyError, build_plan
-from pnp_twin.studies.runner import Options, finish, open_session
+from pnp_twin.studies.folder import Tables, write_records
+from pnp_twin.studies.plan import RunSpec, StudyError, StudyPlan, build_plan
+from pnp_twin.studies.runner import Options, finish, open_session, run_plan
 from twin.loader import ScenarioError, with_overrides
+from twin.output import write_json
 from twin.scenario import Scenario
 
 COUNT = "robots.count"
@@ -38,12 +44,16 @@ DEFAULT_MTBF = 600.0  # s: a gripper jam every 10 minutes
 DEFAULT_MTTR = 30.0  # s: cleared in half a minute
 MARGIN = 0.20  # the rule of thumb's safety margin
 LIMITS = {"robots.arm_speed": "slowest", "feeder.rate": "highest"}
+LAYOUTS = ("extend", "share")
 
 
 def sizing_setup(
-    scenario: Scenario, grid: Mapping[str, Sequence[Any]]
+    scenario: Scenario, grid: Mapping[str, Sequence[Any]], layout: str = "extend"
 ) -> tuple[Scenario, dict[str, list[Any]]]:
-    """The scenario and grid a sizing study runs: robot counts, failures off and on."""
+    """The scenario and grid a sizing study runs: robot counts, failures off and on; the belt
+    lengthened for the largest count (``extend``) or its workspaces narrowed (``share``)."""
+    if layout not in LAYOUTS:
+        raise StudyError(f"--layout: '{layout}' is not allowed; allowed {', '.join(LAYOUTS)}")
     out: dict[str, list[Any]] = {k: list(v) for k, v in grid.items()}
     if COUNT not in out:
         n = scenario.robots.count
@@ -60,12 +70,75 @@ def sizing_setup(
     mtbf = r.mtbf if r.mtbf > 0 else DEFAULT_MTBF
     mttr = r.mttr if r.mttr > 0 else DEFAULT_MTTR
     out.setdefault(MTBF, [0.0, mtbf])
-    end = r.first_workspace_start + max(counts) * (r.workspace_length + r.workspace_gap)
-    base = {"robots.mttr": mttr, "belt.length": max(scenario.belt.length, round(end + 0.1, 3))}
+    base: dict[str, Any] = {"robots.mttr": mttr}
+    if layout == "extend":
+        end = r.first_workspace_start + max(counts) * (r.workspace_length + r.workspace_gap)
+        base["belt.length"] = max(scenario.belt.length, round(end + 0.1, 3))
+    else:  # every point validates with the narrowest workspaces; share_layout sets each
+        base["robots.workspace_length"] = shared_length(scenario, max(counts))
     try:
         return with_overrides(scenario, base), out
     except ScenarioError as e:
         raise StudyError(f"size: {e}") from None
+
+
+def shared_length(scenario: Scenario, n: int) -> float:
+    """Workspace length of ``n`` robots sharing the stretch the scenario's robots cover."""
+    r = scenario.robots
+    span = r.count * r.workspace_length + (r.count - 1) * r.workspace_gap
+    length = (span - (n - 1) * r.workspace_gap) / n
+    if length <= 0:
+        raise StudyError(
+            f"--layout share: {n} robots with workspace_gap {r.workspace_gap:g} m do not fit "
+            f"in the {span:g} m the scenario's robots cover; use --layout extend"
+        )
+    return length
+
+
+def share_layout(plan: StudyPlan, scenario: Scenario) -> StudyPlan:
+    """``plan`` with each point's workspaces narrowed to share the scenario's stretch."""
+    out = []
+    for point, sc in zip(plan.points, plan.scenarios, strict=True):
+        length = shared_length(scenario, int(point[COUNT]))
+        out.append(with_overrides(sc, {"robots.workspace_length": length}))
+    return replace(plan, scenarios=tuple(out))
+
+
+def layout_summary(plan: StudyPlan, layout: str) -> dict[str, Any]:
+    """The layout choice and, per robot count, the belt and workspaces the study ran."""
+    counts: dict[str, Any] = {}
+    for point, sc in zip(plan.points, plan.scenarios, strict=True):
+        n = int(point[COUNT])
+        if str(n) not in counts:
+            counts[str(n)] = {
+                "belt_length": sc.belt.length,
+                "workspace_length": sc.robots.workspace_length,
+                "workspaces": [list(w) for w in sc.robots.layout()],
+            }
+    base = plan.scenario
+    return {"mode": layout, "belt_length": base.belt.length, "counts": counts}
+
+
+def layout_text(layout: dict[str, Any], scenario: Scenario) -> str:
+    """One sentence on how the robots were laid out."""
+    r = scenario.robots
+    if layout["mode"] == "share":
+        span = r.count * r.workspace_length + (r.count - 1) * r.workspace_gap
+        return (
+            f"Layout: share. The {scenario.belt.length:g} m belt is kept; N robots share the "
+            f"{span:g} m stretch that the scenario's {r.count} robots cover, each with a "
+            f"workspace of {span:g} / N m."
+        )
+    longest = max(c["belt_length"] for c in layout["counts"].values())
+    grown = (
+        f"the belt is lengthened from {scenario.belt.length:g} m to {longest:g} m"
+        if longest > scenario.belt.length
+        else f"the {scenario.belt.length:g} m belt fits every count"
+    )
+    return (
+        f"Layout: extend. Each robot keeps a {r.workspace_length:g} m workspace and {grown}; "
+        "use --layout share to keep the belt instead."
+    )
 
 
 def _conditions(summary: pd.DataFrame, paths: Sequence[str]) -> list[dict[str, Any]]:
@@ -213,6 +286,19 @@ def analyse(
     return out
 
 
+def showcase_spec(plan: StudyPlan, sizing: dict[str, Any]) -> RunSpec:
+    """The run the report shows up close: the answer's count (else the largest) without
+    breakdowns, the best policy there, replication 0."""
+    rows = pd.DataFrame(sizing["rows"])
+    plain = rows[rows[MTBF] == 0] if MTBF in rows else rows
+    n = sizing["answer"] if sizing["answer"] is not None else int(plain[COUNT].max())
+    row = plain[plain[COUNT] == n].iloc[0]
+    point, policy = int(row["point"]), str(row["policy"])
+    return next(
+        s for s in plan.specs() if s.point == point and s.policy == policy and s.replication == 0
+    )
+
+
 def _records(frame: pd.DataFrame) -> list[dict[str, Any]]:
     return [
         {k: (v.item() if hasattr(v, "item") else v) for k, v in r.items()}
@@ -268,6 +354,7 @@ def run_size(
     options: Options,
     policies: Sequence[str] | None = None,
     replications: int | None = None,
+    layout: str = "extend",
 ) -> tuple[Tables, dict[str, Any]]:
     """Run a sizing study into ``out``; returns its tables and the sizing.json mapping."""
     sweep = scenario.sweep
@@ -278,16 +365,20 @@ def run_size(
         raise StudyError(f"--target: {target:g} is not allowed; give a percentage in (0, 100]")
     if not 0 < options.confidence < 1:
         raise StudyError(f"--confidence: {options.confidence:g} is not allowed; give 0 < c < 1")
-    line, grid = sizing_setup(scenario, sweep.grid if sweep else {})
+    line, grid = sizing_setup(scenario, sweep.grid if sweep else {}, layout)
     plan = build_plan(line, grid=grid, policies=policies, replications=replications)
-    extra = {"target": target, "confidence": options.confidence}
+    if layout == "share":
+        plan = share_layout(plan, scenario)
+    extra = {"target": target, "confidence": options.confidence, "layout": layout}
     session = open_session(out, plan, "size", options, extra)
-    specs = plan.specs()
-    session.plan_more(len(specs))
-    rows = session.run(specs)
+    plan, rows = run_plan(session, plan)
     tables = finish(session, plan, "size", rows, extra)
     sizing = analyse(
         tables.results, tables.summary, list(plan.grid), plan.scenario, target, options.confidence
     )
-    write_json(out / "sizing.json", sizing)
+    sizing["layout"] = layout_summary(plan, layout)
+    sizing["layout"]["text"] = layout_text(sizing["layout"], scenario)
+    sizing["text"] = sizing["layout"]["text"] + " " + sizing["text"]
+    write_records(out, showcase_spec(plan, sizing))
+    write_json(sizing, out / "sizing.json", keep_nan=True)
     return tables, sizing

@@ -11,23 +11,39 @@ A checkpoint folder holds
 Every file is written to a temporary name in the same folder and moved into place with
 ``os.replace``; ``meta.json`` goes last, so a folder whose meta exists is complete. Loading
 reads tensors with safetensors and JSON with ``json``: no code is ever unpickled.
+
+Nothing is used before it is checked: ``meta.json`` is validated against :class:`Meta` (a
+pydantic schema: known keys only, types, bounds, a valid scenario, known rules, consistent
+shapes), and the weights against the network the metadata describes (every tensor present
+with its shape, nothing extra, all values finite). A broken checkpoint is one
+:class:`CheckpointError` line naming the file and the problem.
 """
 
 from __future__ import annotations
 
 import json
+import logging
+import math
 import platform
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import torch
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 from safetensors.torch import load_file, save
 
+from policies.hdqn import MODES
 from policies.hdqn.agent import AgentConfig, DQNAgent
+from policies.hdqn.network import PRESETS
+from policies.registry import rule_names
 from twin.errors import UserError
 from twin.output import atomic_path, write_text
+from twin.scenario import Scenario
+
+log = logging.getLogger(__name__)
+_WARNED: set[tuple[Any, ...]] = set()
 
 FORMAT = 1
 MODEL = "model.safetensors"
@@ -37,7 +53,181 @@ META = "meta.json"
 
 
 class CheckpointError(UserError):
-    """A missing or unreadable checkpoint folder; the message is one line."""
+    """A missing, unreadable or invalid checkpoint; the message is one line."""
+
+
+MAX_CELLS = 1 << 20  # observation cells (C x H x W); a real belt image has a few thousand
+MAX_ACTIONS = 1 << 20  # joint actions (K**N); paper_baseline's single mode has 1,296
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=False)
+
+
+class AgentMeta(_Strict):
+    """:class:`~policies.hdqn.agent.AgentConfig` as recorded."""
+
+    network: str
+    lr: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+    gamma: Annotated[float, Field(ge=0, le=1)]
+    double: bool
+    grad_clip: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+    target_every: Annotated[int, Field(ge=1)]
+
+    @field_validator("network")
+    @classmethod
+    def _preset(cls, v: str) -> str:
+        if v not in PRESETS:
+            raise ValueError(f"'{v}' is not a network preset; allowed {', '.join(PRESETS)}")
+        return v
+
+
+class Meta(_Strict):
+    """The schema of ``meta.json`` (training writes more keys into ``train_args``)."""
+
+    format: Literal[1]
+    name: str = ""
+    mode: Literal[MODES]  # type: ignore[valid-type]
+    view: Literal["window", "belt"] | None = None
+    termination: Literal["t_continue", "t_all", "t_any"] | None = None
+    targets: Literal["td", "rollout"] | None = None
+    rules: list[str]
+    n_robots: Annotated[int, Field(ge=1, le=64)]
+    scenario: dict[str, Any]
+    train_args: dict[str, Any] = Field(default_factory=dict)
+    device: str = "cpu"
+    counters: dict[str, float | int | None] = Field(default_factory=dict)
+    rng: dict[str, Any] | None = None  # older checkpoints kept numpy's RNG state here
+    obs_shape: Annotated[
+        list[Annotated[int, Field(ge=1, le=4096)]], Field(min_length=3, max_length=3)
+    ]
+    n_actions: Annotated[int, Field(ge=1, le=MAX_ACTIONS)]
+    n_extra: Annotated[int, Field(ge=0, le=64)]
+    agent: AgentMeta
+    updates: Annotated[int, Field(ge=0)] = 0
+    optimizer_groups: list[dict[str, Any]] = Field(default_factory=list)
+    versions: dict[str, str] = Field(default_factory=dict)
+
+    @field_validator("rules")
+    @classmethod
+    def _rules(cls, v: list[str]) -> list[str]:
+        return list(rule_names(v))
+
+    @field_validator("scenario", mode="before")
+    @classmethod
+    def _scenario(cls, v: Any) -> Any:
+        if not isinstance(v, dict):
+            raise ValueError("must be a scenario mapping")
+        data = {k: x for k, x in v.items() if k != "source_dir"}  # kept by older versions
+        try:
+            Scenario.model_validate(data)
+        except ValidationError as e:
+            first = e.errors()[0]
+            where = ".".join(str(p) for p in first["loc"])
+            raise ValueError(f"{where}: {first['msg']}") from None
+        return data
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Meta:
+        c, h, w = self.obs_shape
+        if c > 3:
+            raise ValueError(f"obs_shape: {c} channels; the belt image has 1 to 3")
+        if c * h * w > MAX_CELLS:
+            raise ValueError(f"obs_shape: {self.obs_shape} is absurd (over {MAX_CELLS} cells)")
+        k = len(self.rules)
+        want = k**self.n_robots if self.mode == "single" else k
+        if self.n_actions != want:
+            raise ValueError(
+                f"n_actions: {self.n_actions} does not fit {k} rules and {self.n_robots} "
+                f"robots in {self.mode} mode (expected {want})"
+            )
+        if self.n_extra not in (0, self.n_robots):
+            raise ValueError(f"n_extra: {self.n_extra} must be 0 or n_robots ({self.n_robots})")
+        return self
+
+
+def check_meta(data: Any, where: str) -> dict[str, Any]:
+    """``data`` validated against :class:`Meta` (a plain dict), or one CheckpointError line."""
+    if not isinstance(data, dict):
+        raise CheckpointError(
+            f"checkpoint: {where}: must be a JSON object, not {type(data).__name__}"
+        )
+    try:
+        meta = Meta.model_validate(data)
+    except ValidationError as e:
+        first = e.errors()[0]
+        loc = ".".join(str(p) for p in first["loc"]) or "meta"
+        msg = first["msg"].removeprefix("Value error, ")
+        if first["type"] == "extra_forbidden":
+            msg = f"unknown key; allowed {', '.join(Meta.model_fields)}"
+        elif first["type"] == "missing":
+            msg = "missing"
+        raise CheckpointError(f"checkpoint: {where}: {loc}: {msg}") from None
+    out = dict(data)
+    out["scenario"] = meta.scenario
+    out["rules"] = meta.rules
+    return out
+
+
+def check_weights(
+    tensors: dict[str, torch.Tensor], expected: dict[str, torch.Tensor], where: str
+) -> None:
+    """The saved tensors match the network's (names, shapes) and are finite."""
+    missing = sorted(set(expected) - set(tensors))
+    if missing:
+        raise CheckpointError(f"checkpoint: {where}: tensor {missing[0]} is missing")
+    extra = sorted(set(tensors) - set(expected))
+    if extra:
+        raise CheckpointError(f"checkpoint: {where}: unexpected tensor {extra[0]}")
+    for name, want in expected.items():
+        got = tensors[name]
+        if tuple(got.shape) != tuple(want.shape):
+            raise CheckpointError(
+                f"checkpoint: {where}: tensor {name} has shape {tuple(got.shape)}, the network "
+                f"in meta.json needs {tuple(want.shape)}"
+            )
+        if got.is_floating_point() and not bool(torch.isfinite(got).all()):
+            raise CheckpointError(
+                f"checkpoint: {where}: tensor {name} holds NaN or infinite values; "
+                "the model is broken (retrain it)"
+            )
+
+
+def read_tensors(path: Path, device: str = "cpu") -> dict[str, torch.Tensor]:
+    """The tensors of a safetensors file, or one CheckpointError line (missing, truncated)."""
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint: {path} is missing")
+    try:
+        return load_file(str(path), device=device)
+    except Exception as e:  # safetensors raises its own error types for corrupt files
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise CheckpointError(
+            f"checkpoint: {path} is not a readable safetensors file ({first})"
+        ) from None
+
+
+def warn_if_other_line(meta: dict[str, Any], belt: Any, robots: list[Any], where: str) -> None:
+    """Log one warning when the line differs from the scenario the model was trained on
+    (belt geometry or speed, workspaces, arm speed): the policy may not transfer."""
+    trained = meta.get("scenario", {})
+    tb, tr = trained.get("belt", {}), trained.get("robots", {})
+    diffs = []
+    for key in ("length", "width", "speed"):
+        if key in tb and not math.isclose(float(tb[key]), float(getattr(belt, key))):
+            diffs.append(f"belt.{key} {getattr(belt, key):g} (trained {float(tb[key]):g})")
+    if "arm_speed" in tr and robots:
+        arm = max(r.arm_speed for r in robots)
+        if not math.isclose(float(tr["arm_speed"]), arm):
+            diffs.append(f"robots.arm_speed {arm:g} (trained {float(tr['arm_speed']):g})")
+    key = (where, trained.get("name"), tuple(diffs))
+    if diffs and key not in _WARNED:  # once per process, not once per run of a sweep
+        _WARNED.add(key)
+        log.warning(
+            "warning: %s was trained on scenario '%s'; this line differs: %s",
+            where,
+            trained.get("name", "?"),
+            ", ".join(diffs),
+        )
 
 
 def versions() -> dict[str, str]:
@@ -125,14 +315,15 @@ def read_meta(folder: str | Path) -> dict[str, Any]:
     """The metadata of a checkpoint folder."""
     path = resolve(folder)
     try:
-        meta: dict[str, Any] = json.loads((path / META).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise CheckpointError(f"checkpoint: cannot read {path / META}: {exc}") from None
-    if meta.get("format") != FORMAT:
+        data = json.loads((path / META).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise CheckpointError(f"checkpoint: cannot read {path / META}: {first}") from None
+    if isinstance(data, dict) and data.get("format") != FORMAT:
         raise CheckpointError(
-            f"checkpoint: {path / META} has format {meta.get('format')}, expected {FORMAT}"
+            f"checkpoint: {path / META}: format: {data.get('format')!r}, expected {FORMAT}"
         )
-    return meta
+    return check_meta(data, str(path / META))
 
 
 def load_agent(
@@ -145,8 +336,10 @@ def load_agent(
     config = AgentConfig(**meta["agent"])
     shape = tuple(meta["obs_shape"])
     agent = DQNAgent(config, shape, meta["n_actions"], meta["n_extra"], device)  # type: ignore[arg-type]
-    weights = load_file(str(path / MODEL), device=str(agent.device))
-    agent.q.load_state_dict({k[2:]: v for k, v in weights.items() if k.startswith("q.")})
+    weights = read_tensors(path / MODEL, str(agent.device))
+    expected = {f"q.{k}": v for k, v in agent.q.state_dict().items()}
+    check_weights(weights, expected, str(path / MODEL))
+    agent.q.load_state_dict({k[2:]: v for k, v in weights.items()})
     agent.target.load_state_dict(agent.q.state_dict())
     agent.updates = int(meta.get("updates", 0))
     if train_state:
@@ -158,7 +351,11 @@ def load_agent(
 def _load_train_state(path: Path, agent: DQNAgent, meta: dict[str, Any]) -> None:
     if not (path / STATE).is_file():
         raise CheckpointError(f"checkpoint: {path / STATE} is missing; cannot resume")
-    tensors = load_file(str(path / STATE))
+    tensors = read_tensors(path / STATE)
+    target = {f"target.{k}": v for k, v in agent.target.state_dict().items()}
+    check_weights(
+        {k: v for k, v in tensors.items() if k.startswith("target.")}, target, str(path / STATE)
+    )
     agent.target.load_state_dict(
         {k[7:]: v.to(agent.device) for k, v in tensors.items() if k.startswith("target.")}
     )

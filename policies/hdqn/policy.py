@@ -17,33 +17,19 @@ import numpy as np
 
 from policies.base import RuleChoosingPolicy
 from policies.hdqn.agent import DQNAgent, decode_joint, robot_onehot
-from policies.hdqn.checkpoint import META, CheckpointError, load_agent, resolve
+from policies.hdqn.checkpoint import (
+    META,
+    CheckpointError,
+    load_agent,
+    resolve,
+    warn_if_other_line,
+)
 from twin.belt import Belt
 from twin.camera import BeltCamera
 from twin.decision import Decision, RobotSpec
 from twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
-
-
-class _Clock:
-    now = 0.0
-
-
-class _Gate:
-    def __init__(self) -> None:
-        self.epochs = 0
-        self.pending: list[int] = []
-
-
-class _LineView:
-    """The three things :class:`BeltCamera` reads from a line (belt, clock, gateway), fed
-    from a decision: outside hold mode the policy sees the belt, not the line."""
-
-    def __init__(self, belt: Belt) -> None:
-        self.belt = belt
-        self.env = _Clock()
-        self.gateway = _Gate()
 
 
 def camera_scenario(base: dict[str, Any], belt: Belt, robots: list[RobotSpec]) -> Scenario:
@@ -87,8 +73,8 @@ class HDQNPolicy(RuleChoosingPolicy):
         view = meta.get("view", meta.get("train_args", {}).get("view", "window"))
         self.whole_belt: bool = self.mode == "single" or view == "belt"
         self.name = meta.get("name", f"hdqn-{self.mode}")
-        self.view: _LineView | None = None
         self.camera: BeltCamera | None = None
+        self._decisions = 0  # a fresh image per decision (claims change between them)
 
     @classmethod
     def load(cls, folder: str | Path, device: str = "cpu") -> HDQNPolicy:
@@ -118,10 +104,9 @@ class HDQNPolicy(RuleChoosingPolicy):
 
     def attach(self, belt: Belt) -> None:
         """Called by the line with its belt: build the camera for this line's geometry."""
-        self.view = _LineView(belt)
         scenario = camera_scenario(self.meta["scenario"], belt, self.robots)
         camera = BeltCamera(scenario, self.channels)
-        camera.attach(self.view)  # type: ignore[arg-type]
+        camera.attach(belt)
         want = tuple(self.agent.obs_shape)
         got = camera.shape if self.whole_belt else camera.window_shape
         if tuple(got) != want:
@@ -129,20 +114,23 @@ class HDQNPolicy(RuleChoosingPolicy):
                 f"policy: this line gives observations of shape {tuple(got)}, the HDQN was "
                 f"trained on {want}; use a line with the trained belt grid and workspace size"
             )
+        warn_if_other_line(self.meta, belt, self.robots, f"the HDQN ({self.name})")
         self.camera = camera
 
     def observe(self, decision: Decision) -> tuple[np.ndarray, np.ndarray | None]:
         """The network input for a decision: (1, C, H, W) image and the extra features."""
-        view, camera = self.view, self.camera
-        if view is None or camera is None:
+        camera = self.camera
+        if camera is None:
             raise RuntimeError("HDQNPolicy needs the belt: the line calls attach(belt)")
-        view.env.now = decision.time
-        view.gateway.epochs += 1  # a fresh image per decision
-        view.gateway.pending = [decision.robot]
+        now, robot, free = decision.time, decision.robot, (decision.robot,)
         if self.mode == "single":
-            return camera.belt()[None], None
-        obs = camera.belt()[None] if self.whole_belt else camera.window(decision.robot)[None]
-        return obs, robot_onehot([decision.robot], len(self.robots))
+            return camera.belt(now, free)[None], None
+        self._decisions += 1
+        if self.whole_belt:
+            obs = camera.belt(now, free)[None]
+        else:
+            obs = camera.window(robot, now, free, self._decisions)[None]
+        return obs, robot_onehot([robot], len(self.robots))
 
     def select_rule(self, decision: Decision) -> str:
         obs, extra = self.observe(decision)

@@ -111,7 +111,7 @@ def test_rewards_match_the_records():
     assert total == pytest.approx(extrinsic - 0.05 * noops, rel=1e-9)
     # info["picks"] counts every completed grip, per robot
     gripped = parts[parts["robot"].notna()]
-    assert picks.tolist() == [int((gripped["robot"] == r).sum()) for r in range(4)]
+    assert picks.tolist() == [int((gripped["robot"] == r + 1).sum()) for r in range(4)]
     assert info["gripping_rate"] == pytest.approx(env.driver.gripping_rate())
 
 
@@ -136,7 +136,9 @@ def test_observation_is_the_belt_image_with_documented_channels():
     camera = driver.camera
     seen_claim = False
     for step in range(300):
-        obs, *_ = env.step(step % env.action_space.n)
+        obs, _r, term, trunc, _i = env.step(step % env.action_space.n)
+        if term or trunc:  # stepping past the end raises
+            obs, _i = env.reset()
         line = driver.line
         assert np.array_equal(obs[0], line.belt.image(driver.now))
         assert (obs[1] <= obs[0]).all()

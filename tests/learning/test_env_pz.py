@@ -69,7 +69,7 @@ def test_aec_selects_the_free_robot_and_credits_option_rewards():
     parts = line.recorder.parts_frame(line.belt, line.last_end)
     done = parts[parts["placed_at"] <= driver.now]
     for r, agent in enumerate(env.possible_agents):
-        mine = done[done["robot"] == r]
+        mine = done[done["robot"] == r + 1]  # the records number robots from 1
         expected = float((1.0 / (mine["placed_at"] - mine["decided_at"])).sum())
         assert expected > 0 and credited[agent] == pytest.approx(expected, rel=1e-9)
     assert min(taus) > 0.0

@@ -16,7 +16,7 @@ from pnp_twin.learning.rollout import LabelSettings, label_episode  # noqa: E402
 from pnp_twin.learning.rollout_train import RolloutArgs, train_rollout  # noqa: E402
 from policies.base import RuleMix  # noqa: E402
 from policies.registry import make_policy  # noqa: E402
-from twin.feeder import splice  # noqa: E402
+from twin.feeder import resampled, splice  # noqa: E402
 from twin.line import Line  # noqa: E402
 from twin.loader import load_scenario, with_overrides  # noqa: E402
 from twin.run import simulate  # noqa: E402
@@ -36,7 +36,8 @@ def test_splice_keeps_the_past_and_takes_the_future_from_the_other_stream():
 def test_a_sampled_future_changes_only_the_parts_fed_after_its_start():
     scenario = load_scenario("paper_baseline")
     real = Line(scenario, RuleMix(["SPT"]), seed=4, duration=20.0)
-    other = Line(scenario, RuleMix(["SPT"]), seed=4, duration=20.0, future=(8.0, 99))
+    future = resampled(scenario, 4, 99, 8.0, 20.0)
+    other = Line(scenario, RuleMix(["SPT"]), seed=4, duration=20.0, parts=future)
     fed, alt = np.asarray(real.belt.fed), np.asarray(other.belt.fed)
     k = int((fed <= 8.0).sum())
     assert np.array_equal(alt[:k], fed[:k]) and np.array_equal(

@@ -53,6 +53,14 @@ def sizing(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
 
 
+@pytest.fixture(scope="session")
+def mix2(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An exhaustive rule-mix search: two rules on a two-robot line, three replications."""
+    folder = tmp_path_factory.mktemp("reports") / "mix"
+    line = {"robots.count": 2, "feeder.rate": 5.0}
+    return make_study(folder, policies=("FIFO", "SPT"), kind="mix", replications=3, base=line)
+
+
 def test_sweep_figure_has_one_band_per_policy_and_every_value(sweep3: Path) -> None:
     study = load_study(sweep3)
     fig = figures.sweep_figure(study.summary, "robots.arm_speed", {}, study.policies)
@@ -134,11 +142,14 @@ def test_robots_figure_stacks_time_shares(sweep3: Path) -> None:
     stacked = [t for t in fig.data if t.xaxis == "x"]
     totals = [sum(t.y[i] for t in stacked) for i in range(4)]
     assert all(90 <= s <= 100.001 for s in totals)
-    missed = next(t for t in fig.data if t.name == "Passed unpicked")
+    passed = next(t for t in fig.data if t.name.startswith("Passed on"))
+    lost = next(t for t in fig.data if t.name.startswith("Lost"))
     runs = study.results[
         (study.results["robots.arm_speed"] == 2) & (study.results["policy"] == policy)
     ]
-    assert missed.y[3] == pytest.approx(runs["r4_missed"].mean())
+    assert passed.y[0] == pytest.approx(runs["r1_passed_on"].mean()) and passed.y[3] == 0
+    assert lost.y[3] == pytest.approx(runs["r4_lost"].mean())
+    assert lost.y[3] == pytest.approx(runs["parts_missed"].mean())
 
 
 def test_sizing_sentence_names_the_answer(sizing: Path) -> None:
@@ -195,13 +206,18 @@ def test_single_point_single_policy_study(tmp_path: Path) -> None:
     assert reference_point(study) == {}
 
 
-def test_mix_report_ranks_the_mixes(tmp_path: Path) -> None:
-    mixes = ("SPT,SPT,SPT,FIFO", "SD", "FIFO")
-    folder = make_study(tmp_path / "mix", grid={}, policies=mixes, kind="mix", records=False)
-    html = render_report(folder)
-    mix = json.loads((folder / "mix.json").read_text())
-    assert "Rule-mix ranking" in html and "Best of 3 rule mixes" in html
-    assert html.index(mix["ranked"][0]["mix"]) < html.index(mix["ranked"][-1]["mix"] + "</code>")
+def test_mix_report_ranks_the_mixes(mix2: Path) -> None:
+    html = render_report(mix2)
+    mix = json.loads((mix2 / "mix.json").read_text())
+    assert "Rule-mix ranking" in html and "4 mixes evaluated (exhaustive" in html
+    table = html[html.index("<table", html.index('id="mix"')) :]
+    table = table[: table.index("</table>")]
+    assert table.count("<tr") == 1 + 4  # header and every mix
+    assert "<th class=\"l\">Robot 1</th><th class=\"l\">Robot 2</th>" in table
+    rows = table.split("<tr")[2:]
+    for rank, (row, r) in enumerate(zip(rows, mix["ranked"], strict=True), start=1):
+        assert f">{rank}</td>" in row
+        assert "".join(f'<td class="l">{rule}</td>' for rule in r["mix"].split(",")) in row
 
 
 def test_formats_for_humans() -> None:

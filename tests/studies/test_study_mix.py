@@ -59,3 +59,50 @@ def test_grasp_is_seeded_and_within_budget(tmp_path):
 def test_bad_rule_is_an_error(two_robots, tmp_path):
     with pytest.raises(StudyError, match="mix: 'XYZ' is not a rule"):
         run_mix(two_robots, tmp_path, Options(workers=1), ["FIFO", "XYZ"])
+
+
+class ScoredSearch:
+    """A MixSearch stand-in that scores mixes by a formula instead of simulating them."""
+
+    def __init__(self, budget: int) -> None:
+        self.budget, self.order, self.scores = budget, [], {}
+        self.stopped = ""
+
+    @property
+    def left(self) -> int:
+        return self.budget - len(self.order)
+
+    def evaluate(self, mixes):
+        for m in dict.fromkeys(mixes):
+            if m not in self.scores and self.left > 0:
+                self.order.append(m)
+                self.scores[m] = float(sum(len(r) for r in m.split(",")) + m.count("SPT"))
+        return {m: self.scores[m] for m in mixes if m in self.scores}
+
+
+def test_grasp_ends_when_every_reachable_mix_is_known():
+    # 2 rules on 3 robots is 8 mixes, far below the budget: the search used to spin for good
+    # once every neighbour was scored (issue 10, item 1)
+    import threading
+
+    from pnp_twin.studies.rulemix import grasp
+
+    search = ScoredSearch(budget=1000)
+    worker = threading.Thread(
+        target=grasp, args=(search, ["FIFO", "SPT"], 3, np.random.default_rng(0), 0.3), daemon=True
+    )
+    worker.start()
+    worker.join(timeout=10)
+    assert not worker.is_alive(), "grasp did not end within 10 s"
+    assert search.stopped == "converged"
+    assert len(search.order) <= 8 and "SPT,SPT,SPT" in search.order
+
+
+def test_mix_json_gives_the_paired_margin_over_the_runner_up(two_robots, tmp_path):
+    _, mix = run_mix(two_robots, tmp_path, Options(workers=1), ["FIFO", "SPT"], replications=3)
+    m = mix["margin"]
+    assert m["best"] == mix["ranked"][0]["mix"] and m["runner_up"] == mix["ranked"][1]["mix"]
+    gap = mix["ranked"][0]["gripping_rate_mean"] - mix["ranked"][1]["gripping_rate_mean"]
+    assert m["diff_mean"] == pytest.approx(gap)
+    assert m["ci_low"] <= m["diff_mean"] <= m["ci_high"] and m["n"] == 3
+    assert m["distinguishable"] == (m["ci_low"] > 0)

@@ -88,7 +88,8 @@ def test_resume_skips_finished_runs(serial, plan, tmp_path):
     for p in removed:
         p.unlink()
     (tmp_path / "results.parquet").unlink()
-    (tmp_path / "runs" / ".p000-SD-r00.json.x.tmp").write_text("{")  # a killed write
+    (tmp_path / "runs" / ".p000-SD-r00.json.0123456789ab.tmp").write_text("{")  # killed write
+    (tmp_path / ".results.parquet.a1b2c3d4e5f6.tmp").write_text("PAR1")  # killed final write
     seen: list[tuple[int, int]] = []
     run_sweep(plan, tmp_path, Options(workers=1, progress=lambda d, t: seen.append((d, t))))
     assert seen[1] == (10, 16) and seen[-1] == (16, 16)  # 10 skipped, 6 run
@@ -97,13 +98,17 @@ def test_resume_skips_finished_runs(serial, plan, tmp_path):
     df = table(tmp_path)
     assert df["run_id"].is_unique
     pd.testing.assert_frame_equal(df, table(serial))
-    assert not list((tmp_path / "runs").glob(".*.tmp"))
+    assert not list((tmp_path / "runs").glob(".*.tmp")) and not list(tmp_path.glob(".*.tmp"))
 
 
 def test_changed_definition_needs_fresh(plan, serial, tmp_path):
     run_sweep(plan, tmp_path, Options(workers=1))
     other = build_plan(plan.scenario, grid=GRID, policies=["SD"], replications=2)
-    with pytest.raises(StudyError, match=r"holds a different study \(changed: policies\).*--fresh"):
+    with pytest.raises(
+        StudyError,
+        match=r"holds a different study \(policies was \[\"SD\", \"FIFO\"\], "
+        r"now \[\"SD\"\]\).*--fresh",
+    ):
         run_sweep(other, tmp_path, Options(workers=1))
     run_sweep(other, tmp_path, Options(workers=1, fresh=True))
     df = table(tmp_path)
@@ -184,3 +189,107 @@ def test_cli_bad_sweep_path_is_one_line_exit_2(tmp_path):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "'robots.arm_sped' is not a scenario field" in lines[0]
     assert not (tmp_path / "runs").exists()
+
+
+def test_adding_replications_keeps_the_earlier_runs(plan, serial, tmp_path):
+    one = build_plan(plan.scenario, grid=GRID, policies=["SD", "FIFO"], replications=1)
+    run_sweep(one, tmp_path, Options(workers=1))
+    run_sweep(plan, tmp_path, Options(workers=1))  # 1 -> 2 replications: no --fresh needed
+    meta = json.loads((tmp_path / "meta.json").read_text())
+    assert meta["runs_skipped"] == 8 and meta["runs_executed"] == 8
+    pd.testing.assert_frame_equal(table(tmp_path), table(serial))
+
+
+def test_a_failed_fresh_start_leaves_the_old_study_intact(plan, tmp_path):
+    tiny = build_plan(plan.scenario, grid={"feeder.rate": [8.0]}, policies=["SD"], replications=2)
+    run_sweep(tiny, tmp_path, Options(workers=1))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    runs = sorted(p.name for p in (tmp_path / "runs").iterdir())
+    with pytest.raises(StudyError, match="--backend"):
+        run_sweep(tiny, tmp_path, Options(backend="dask", fresh=True))
+    after = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert after == before and sorted(p.name for p in (tmp_path / "runs").iterdir()) == runs
+    assert not (tmp_path / ".replaced").exists()
+    run_sweep(tiny, tmp_path, Options(workers=1, fresh=True))  # the lock was let go
+    assert json.loads((tmp_path / "meta.json").read_text())["runs_executed"] == 2
+
+
+def test_auto_replications_add_rounds_until_the_half_width_is_met(plan, tmp_path):
+    grid = {"feeder.rate": [8.0, 12.0]}
+    auto = build_plan(
+        plan.scenario,
+        grid=grid,
+        policies=["SD"],
+        replications="auto",
+        half_width=0.01,
+        max_replications=5,
+    )
+    assert auto.replications == 3 and auto.precision is not None
+    run_sweep(auto, tmp_path / "auto", Options(workers=1))
+    meta = json.loads((tmp_path / "auto" / "meta.json").read_text())
+    p = meta["precision"]
+    assert p["rounds"] == [3, 5] and p["replications"] == 5 == meta["replications"]
+    assert p["reached"] is False and p["points_short"] == 2 and p["half_width_max"] > 0.01
+    assert p["target_half_width"] == 0.01 and p["kpi"] == "gripping_rate"
+    fixed = build_plan(plan.scenario, grid=grid, policies=["SD"], replications=5)
+    run_sweep(fixed, tmp_path / "fixed", Options(workers=1))
+    pd.testing.assert_frame_equal(table(tmp_path / "auto"), table(tmp_path / "fixed"))
+    summary = pd.read_csv(tmp_path / "auto" / "summary.csv")
+    half = (summary["gripping_rate_ci_high"] - summary["gripping_rate_ci_low"]) / 2
+    assert half.max() == pytest.approx(p["half_width_max"])
+    wide = build_plan(
+        plan.scenario, grid=grid, policies=["SD"], replications="auto", half_width=50.0
+    )
+    run_sweep(wide, tmp_path / "wide", Options(workers=1))
+    p = json.loads((tmp_path / "wide" / "meta.json").read_text())["precision"]
+    assert p["rounds"] == [3] and p["reached"] is True and p["max_replications"] == 30
+
+
+@pytest.mark.parametrize(
+    ("kw", "needle"),
+    [
+        ({"replications": "auto"}, "--half-width: replications = auto needs"),
+        ({"replications": "auto", "half_width": -1.0}, "--half-width: -1.0 is not allowed"),
+        ({"replications": "auto", "half_width": 1.0, "max_replications": 1}, "--max-rep"),
+        ({"replications": 3, "half_width": 1.0}, "--half-width: only with --replications auto"),
+        ({"replications": 0}, "--replications: 0 is not allowed"),
+    ],
+)
+def test_bad_replication_settings_are_one_line(plan, kw, needle):
+    with pytest.raises(StudyError, match=needle):
+        build_plan(plan.scenario, grid={}, policies=["SD"], **kw)
+
+
+def test_cli_auto_replications_and_the_same_file_twice(tmp_path):
+    app = cli()
+    args = [
+        "sweep",
+        "paper_baseline",
+        "--out",
+        str(tmp_path),
+        "-w",
+        "1",
+        "--no-report",
+        "--set",
+        "sweep.grid={'feeder.rate': [8.0]}",
+        "--set",
+        "sweep.duration=20",
+        "--set",
+        "sweep.warmup=2",
+        "--policy",
+        "SD",
+        "--replications",
+        "auto",
+        "--half-width",
+        "40",
+        "--max-replications",
+        "4",
+    ]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert "replications: 3 (rounds 3); target half-width 40 points met" in result.stderr
+    bad = CliRunner().invoke(app, [*args[:-6], "--replications", "many"])
+    assert bad.exit_code == 2
+    assert bad.stderr.strip() == (
+        "error: --replications: 'many' is not allowed; give a whole number >= 1 or auto"
+    )

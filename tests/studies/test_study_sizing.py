@@ -153,3 +153,44 @@ def test_tiny_sizing_study(tmp_path):
     assert np.isclose(saved["rule_of_thumb"]["part_flow"], 3.0, rtol=0.3)
     meta = json.loads((tmp_path / "meta.json").read_text())
     assert meta["kind"] == "size" and meta["grid"][MTBF] == [0.0, 600.0]
+    # the run shown up close is the answer's line, not grid point 0 (2 robots)
+    run = json.loads((tmp_path / "records" / "run.json").read_text())
+    assert run["scenario"]["robots"]["count"] == s["answer"]
+    assert run["scenario"]["robots"]["mtbf"] == 0
+
+
+def test_sizing_layout_is_a_stated_choice(tmp_path):
+    # a 3-robot line on a 2.0 m belt (issue 10, item 2): extend lengthens the belt and says
+    # so; share keeps the 2.0 m belt and narrows the workspaces
+    line = with_overrides(
+        load_scenario("paper_baseline"),
+        {
+            "robots.count": 3,
+            "belt.length": 2.0,
+            "feeder.rate": 3.0,
+            "duration": 30,
+            "warmup": 5,
+            "sweep": {"grid": {COUNT: [2, 3, 6]}, "policies": ["SPT"], "replications": 2},
+        },
+    )
+    _, ext = run_size(line, tmp_path / "extend", 90.0, Options(workers=1))
+    assert ext["layout"]["mode"] == "extend"
+    assert ext["layout"]["counts"]["6"]["belt_length"] == pytest.approx(3.4)
+    assert ext["layout"]["counts"]["6"]["workspace_length"] == pytest.approx(0.5)
+    assert "lengthened from 2 m to 3.4 m" in ext["text"]
+    _, sh = run_size(line, tmp_path / "share", 90.0, Options(workers=1), layout="share")
+    counts = sh["layout"]["counts"]
+    assert {c["belt_length"] for c in counts.values()} == {2.0}
+    assert counts["6"]["workspace_length"] == pytest.approx(1.5 / 6)
+    assert counts["3"]["workspaces"] == [[0.3, 0.8], [0.8, 1.3], [1.3, 1.8]]
+    assert counts["6"]["workspaces"][-1][1] == pytest.approx(1.8)
+    assert sh["text"].startswith("Layout: share.")
+    meta = json.loads((tmp_path / "share" / "meta.json").read_text())
+    assert meta["layout"] == "share"
+
+
+def test_unknown_layout_is_a_one_line_error():
+    from pnp_twin.studies.plan import StudyError
+
+    with pytest.raises(StudyError, match="--layout: 'wide' is not allowed; allowed extend, share"):
+        sizing_setup(load_scenario("paper_baseline"), {COUNT: [2]}, "wide")

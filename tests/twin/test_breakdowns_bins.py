@@ -34,7 +34,7 @@ def test_fixed_breakdowns_follow_mtbf_and_mttr(make_scenario) -> None:
     r = simulate(make_scenario(line), make_policy("SD"))
     down = r.spans[r.spans["state"] == "down"]
     for robot, (mtbf, mttr) in enumerate([(m, rr), (m, rr), (10.0, 10.0), (m, rr)]):
-        mine = down[down["robot"] == robot].sort_values("start")
+        mine = down[down["robot"] == robot + 1].sort_values("start")  # tables: robot 1 first
         assert len(mine) > 20
         # every repair takes exactly mttr
         assert np.allclose(mine["end"] - mine["start"], mttr, rtol=0, atol=1e-9)
@@ -90,7 +90,7 @@ def test_box_changes_block_placing(make_scenario, capacity: int, change: float) 
     assert len(blocked) > 0
     place = sc.robots.place_time
     for robot in range(4):
-        mine = picked[picked["robot"] == robot].sort_values("placed_at")
+        mine = picked[picked["robot"] == robot + 1].sort_values("placed_at")  # robot 1 first
         # one box change per `capacity` parts placed
         assert line.robots[robot].bin.boxes == len(mine) // capacity
         done = mine["placed_at"].to_numpy()
@@ -105,7 +105,7 @@ def test_box_changes_block_placing(make_scenario, capacity: int, change: float) 
                 assert wait[j] == 0.0
         assert wait[0] == 0.0
         # a blocked span sits inside the busy cycle of the part it delayed
-        spans_r = blocked[blocked["robot"] == robot]
+        spans_r = blocked[blocked["robot"] == robot + 1]
         delayed = mine[mine["blocked_time"] > 0]
         assert len(spans_r) == len(delayed)
         for (s, e), (_, p) in zip(

@@ -30,11 +30,11 @@ SPECS = [spec(0, 0.3, 0.8), spec(1, 0.8, 1.3)]
 def parts_table() -> pd.DataFrame:
     rows = [
         # part fed   y    kind outcome  robot rule   decided picked placed blocked left
-        (0, 5.0, 0.2, "", "picked", 0, "SD", 5.5, 5.8, 6.5, 0.0, 5.8),  # before the window
-        (1, 10.0, 0.3, "", "picked", 0, "SD", 11.0, 11.5, 12.0, 0.2, 11.5),
-        (2, 11.0, 0.1, "", "picked", 1, "FIFO", 12.0, 12.4, 13.0, 0.0, 12.4),
+        (0, 5.0, 0.2, "", "picked", 1, "SD", 5.5, 5.8, 6.5, 0.0, 5.8),  # before the window
+        (1, 10.0, 0.3, "", "picked", 1, "SD", 11.0, 11.5, 12.0, 0.2, 11.5),
+        (2, 11.0, 0.1, "", "picked", 2, "FIFO", 12.0, 12.4, 13.0, 0.0, 12.4),
         (3, 12.0, 0.2, "", "missed", None, None, NAN, NAN, NAN, 0.0, 13.625),
-        (4, 13.0, 0.25, "", "picked", 0, "SD", 19.0, 19.5, 21.0, 0.0, 19.5),  # ends late
+        (4, 13.0, 0.25, "", "picked", 1, "SD", 19.0, 19.5, 21.0, 0.0, 19.5),  # ends late
         (5, 20.0, 0.2, "", "missed", None, None, NAN, NAN, NAN, 0.0, 21.625),  # after it
     ]
     df = pd.DataFrame(rows, columns=PART_COLUMNS)
@@ -44,12 +44,12 @@ def parts_table() -> pd.DataFrame:
 
 def spans_table() -> pd.DataFrame:
     rows = [
-        (0, "wait", 0.0, 10.5),  # 0.5 s inside the window
-        (1, "noop", 9.0, 9.5),  # before the window: neither time nor a NooP decision
-        (1, "noop", 10.0, 12.0),
-        (0, "blocked", 11.8, 12.0),  # a box change inside part 1's cycle
-        (1, "interrupted", 13.0, 13.5),  # an approach cut short: busy time, no pick
-        (1, "down", 14.0, 16.0),
+        (1, "wait", 0.0, 10.5),  # 0.5 s inside the window
+        (2, "noop", 9.0, 9.5),  # before the window: neither time nor a NooP decision
+        (2, "noop", 10.0, 12.0),
+        (1, "blocked", 11.8, 12.0),  # a box change inside part 1's cycle
+        (2, "interrupted", 13.0, 13.5),  # an approach cut short: busy time, no pick
+        (2, "down", 14.0, 16.0),
     ]
     return pd.DataFrame(rows, columns=SPAN_COLUMNS)
 
@@ -70,10 +70,11 @@ def test_gripping_rate_counts_parts_fed_in_the_window(kpis) -> None:
 def test_throughput_flow_and_efficiency(kpis) -> None:
     assert kpis["throughput"] == pytest.approx(0.3)  # 3 picks in 10 s
     assert kpis["part_flow"] == pytest.approx(0.4)  # 4 parts presented in 10 s
-    # maximum = min(flow 0.4, capacity 2 x 2.5)
+    # maximum = min(flow 0.4, measured cycle rates 1 / 1.5 s + 1 / 1 s)
     assert kpis["max_throughput"] == pytest.approx(0.4)
     assert kpis["efficiency"] == pytest.approx(0.75)
-    assert [r["capacity"] for r in kpis["robots"]] == pytest.approx([2.5, 2.5])
+    assert [r["capacity"] for r in kpis["robots"]] == pytest.approx([1 / 1.5, 1.0])
+    assert [r["nominal_capacity"] for r in kpis["robots"]] == pytest.approx([2.5, 2.5])
     assert [r["picks"] for r in kpis["robots"]] == [2, 1]
     assert [r["throughput"] for r in kpis["robots"]] == pytest.approx([0.2, 0.1])
 
@@ -94,9 +95,13 @@ def test_utilisation_and_state_shares(kpis) -> None:
     assert kpis["utilisation"] == pytest.approx((1.8 + 1.5) / 20)
 
 
-def test_missed_per_workspace(kpis) -> None:
-    # parts that left workspace i unpicked: part 3 passed both; part 2 passed robot 1's
-    assert [r["missed"] for r in kpis["robots"]] == [2, 1]
+def test_unpicked_parts_are_passed_on_or_lost(kpis) -> None:
+    # part 2 left robot 1's workspace and robot 2 picked it: passed on; part 3 passed both
+    # workspaces and reached the return conveyor: lost (issue 10, item 6)
+    assert [r["passed_on"] for r in kpis["robots"]] == [1, 0]
+    assert [r["lost"] for r in kpis["robots"]] == [1, 1]
+    assert kpis["parts_missed"] == 1
+    assert "missed" not in kpis["robots"][0]
     assert [r["workspace"] for r in kpis["robots"]] == [[0.3, 0.8], [0.8, 1.3]]
 
 
@@ -119,7 +124,7 @@ def test_flat_row(kpis) -> None:
     assert row["gripping_rate"] == pytest.approx(75.0)
     assert row["r1_picks"] == 2 and row["r2_picks"] == 1
     assert row["r2_availability"] == pytest.approx(0.8)
-    assert row["r1_missed"] == 2
+    assert row["r1_passed_on"] == 1 and row["r1_lost"] == 1
     assert (row["rule_SD"], row["rule_FIFO"], row["rule_NooP"]) == (2, 1, 1)
     assert not any(isinstance(v, dict | list) for v in row.values())
     assert "robots" not in row and "decisions" not in row
@@ -154,3 +159,45 @@ def test_kpis_of_a_real_run_are_consistent(make_scenario) -> None:
     noop_spans = int((r.spans["state"] == "noop").sum())
     assert noop_spans <= noop_decisions <= noop_spans + r.scenario.robots.count
     assert np.isfinite(k["cycle_time_mean"])
+
+
+def test_a_saturated_line_reads_near_full_efficiency(make_scenario) -> None:
+    # far more parts than the robots can take: never idle, so efficiency ~ utilisation ~ 100 %
+    # (the nominal shortest-cycle capacity read 73 % on such a line: issue 10, item 7)
+    sc = make_scenario({"feeder.rate": 30.0})
+    k = simulate(sc, make_policy("SPT")).kpis
+    assert k["utilisation"] > 0.97
+    assert k["efficiency"] == pytest.approx(k["utilisation"], abs=0.02)
+    assert k["efficiency"] > 0.95
+
+
+def test_a_repair_outlasting_the_run_counts_as_down_time(make_scenario) -> None:
+    # fixed MTBF 100 s, MTTR 1000 s: robot 1 breaks at its first decision after t = 100 s and
+    # is still down when the run ends; it used to read availability 1.0 (issue 10, item 3)
+    sc = make_scenario(
+        {
+            "robots.count": 1,
+            "robots.mtbf": 100.0,
+            "robots.mttr": 1000.0,
+            "robots.failure_distribution": "fixed",
+            "duration": 300.0,
+            "warmup": 0.0,
+        }
+    )
+    r = simulate(sc, make_policy("SPT"))
+    robot = r.kpis["robots"][0]
+    assert robot["down"] == pytest.approx(2 / 3, abs=0.01)
+    assert robot["availability"] == pytest.approx(1 / 3, abs=0.01)
+    down = r.spans[r.spans["state"] == "down"]
+    assert len(down) == 1 and down["end"].iloc[0] == pytest.approx(r.sim_time)
+
+
+def test_record_tables_number_robots_from_1(make_scenario) -> None:
+    # --events, --spans and the study records are read by people: robot 1 is the first
+    r = simulate(make_scenario(), make_policy("SPT"))
+    n = r.scenario.robots.count
+    picked = r.parts[r.parts["outcome"] == "picked"]
+    assert set(picked["robot"].astype(int)) <= set(range(1, n + 1))
+    assert 1 in set(picked["robot"].astype(int))
+    assert set(r.spans["robot"]) <= set(range(1, n + 1)) and 1 in set(r.spans["robot"])
+    assert set(r.decisions["robot"]) == set(range(1, n + 1))

@@ -117,8 +117,8 @@ def test_parts_are_conserved_on_any_line(
     # activity goes on past the end of the feed, into the drain
     picked = result.parts[result.parts["outcome"] == "picked"]
     for r in range(scenario.robots.count):
-        ends = result.spans.loc[result.spans["robot"] == r, "end"].tolist()
-        ends += picked.loc[picked["robot"] == r, "placed_at"].tolist()
+        ends = result.spans.loc[result.spans["robot"] == r + 1, "end"].tolist()
+        ends += picked.loc[picked["robot"] == r + 1, "placed_at"].tolist()
         assert max(ends, default=0.0) > scenario.duration, f"robot {r} stopped"
 
 

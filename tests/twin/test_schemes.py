@@ -17,14 +17,16 @@ from twin import simulate
 
 
 def decision_instants(parts: pd.DataFrame, spans: pd.DataFrame) -> dict[int, set[float]]:
-    """Robot -> instants at which it decided: a pick (decided_at) or a NooP (its start)."""
+    """Robot (0-based) -> instants at which it decided: a pick (decided_at) or a NooP (its start).
+
+    The tables number robots from 1."""
     out: dict[int, set[float]] = defaultdict(set)
     picked = parts[parts["outcome"] == "picked"]
     for r, t in zip(picked["robot"], picked["decided_at"], strict=True):
-        out[int(r)].add(float(t))
+        out[int(r) - 1].add(float(t))
     noops = spans[spans["state"] == "noop"]
     for r, t in zip(noops["robot"], noops["start"], strict=True):
-        out[int(r)].add(float(t))
+        out[int(r) - 1].add(float(t))
     return out
 
 
@@ -53,7 +55,7 @@ def test_t_continue_neither_waits_nor_interrupts(runs) -> None:
     inst = decision_instants(result.parts, result.spans)
     picks = result.parts[result.parts["outcome"] == "picked"]
     alone = sum(
-        all(float(t) not in inst[o] for o in range(4) if o != int(r))
+        all(float(t) not in inst[o] for o in range(4) if o != int(r) - 1)
         for r, t in zip(picks["robot"], picks["decided_at"], strict=True)
     )
     assert alone > 0.9 * len(picks)
@@ -103,7 +105,7 @@ def test_t_any_interrupts_approaches_only(runs) -> None:
     parts = result.parts.set_index("part")
     released_then_picked = 0
     for r, s, e in zip(cut["robot"], cut["start"], cut["end"], strict=True):
-        c = by_start[(int(r), float(s))]  # the interrupted cycle began with a choice
+        c = by_start[(int(r) - 1, float(s))]  # the interrupted cycle began with a choice
         # stopped while still approaching: before the grip, so never carrying a part
         assert e < s + c.intercept_time
         row = parts.loc[c.part]
@@ -114,8 +116,9 @@ def test_t_any_interrupts_approaches_only(runs) -> None:
     # the cut robot decides again at once, in the epoch that interrupted it
     noops = spans[spans["state"] == "noop"]
     decided = {(c.robot, c.time) for c in choices}
-    decided |= {(int(r), float(t)) for r, t in zip(noops["robot"], noops["start"], strict=True)}
-    assert {(int(r), float(e)) for r, e in zip(cut["robot"], cut["end"], strict=True)} <= decided
+    decided |= {(int(r) - 1, float(t)) for r, t in zip(noops["robot"], noops["start"], strict=True)}
+    ends = {(int(r) - 1, float(e)) for r, e in zip(cut["robot"], cut["end"], strict=True)}
+    assert ends <= decided
 
 
 def test_an_interrupted_tool_stops_where_it_is(runs) -> None:
@@ -125,8 +128,8 @@ def test_an_interrupted_tool_stops_where_it_is(runs) -> None:
     by_start = {(c.robot, c.time): c for c in choices}
     checked = 0
     for r, s, e in zip(cut["robot"], cut["start"], cut["end"], strict=True):
-        c = by_start[(int(r), float(s))]
-        nxt = by_start.get((int(r), float(e)))
+        c = by_start[(int(r) - 1, float(s))]
+        nxt = by_start.get((int(r) - 1, float(e)))
         if nxt is None:  # it took a NooP instead
             continue
         v, vr = c.spec.belt_speed, c.spec.arm_speed
@@ -165,8 +168,8 @@ def test_t_all_does_not_wait_for_a_broken_robot(make_scenario) -> None:
     result = simulate(make_scenario(line), make_policy("SD"))
     picked = result.parts[result.parts["outcome"] == "picked"]
     down = result.spans[result.spans["state"] == "down"]
-    assert set(down["robot"]) == {0} and len(down) >= 5
-    others = picked[picked["robot"] != 0]
+    assert set(down["robot"]) == {1} and len(down) >= 5
+    others = picked[picked["robot"] != 1]
     during = pd.Series(False, index=others.index)
     for s, e in zip(down["start"], down["end"], strict=True):
         during |= (others["decided_at"] > s) & (others["decided_at"] < e)

@@ -64,7 +64,7 @@ def test_one_part_from_the_base(make_scenario, write_trace, tmp_path) -> None:
     r = simulate(make_scenario(tiny_line(trace, ws)), make_policy("SD"))
     assert len(r.parts) == 1
     p = r.parts.iloc[0]
-    assert p["outcome"] == "picked" and p["robot"] == 0 and p["rule"] == "SD"
+    assert p["outcome"] == "picked" and p["robot"] == 1 and p["rule"] == "SD"
     assert p["decided_at"] == 0.0  # the part is on the belt when the run starts
     t = intercept(0.0, 0.1, base_of(ws))  # the tool starts at the robot's base
     assert t == pytest.approx(0.128127, abs=1e-6)  # worked by hand once, as a sanity anchor
@@ -134,7 +134,7 @@ def test_a_part_passing_a_busy_robot_is_missed(make_scenario, write_trace, tmp_p
     assert kept["y"].iloc[0] == 0.3  # SD: the part nearest the upper edge (the bin side)
     assert lost["left_at"].iloc[0] == pytest.approx(ws[1] / V_B)  # left the last workspace
     assert r.kpis["gripping_rate"] == 50.0
-    assert r.kpis["robots"][0]["missed"] == 1
+    assert r.kpis["robots"][0]["lost"] == 1 and r.kpis["robots"][0]["passed_on"] == 0
 
 
 @pytest.mark.parametrize("acc", [1.5, 4.0, 50.0])

@@ -6,6 +6,8 @@ Importing this package registers ``pnp_twin/PickPlace-v0`` with Gymnasium:
 >>> env = gymnasium.make("pnp_twin/PickPlace-v0", scenario="paper_baseline")
 
 The PettingZoo environments need the ``learn`` extra (pettingzoo); they are imported lazily.
+PettingZoo-style constructors live in :mod:`pnp_twin.learning.envs.pickplace_v0`
+(``env()``, ``raw_env()``, ``parallel_env()``).
 """
 
 from __future__ import annotations
@@ -57,12 +59,20 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'pnp_twin.learning.envs' has no attribute {name!r}")
 
 
+MAX_EPISODE_STEPS = 5000
+"""The paper's cap on decision steps, registered in the spec (Gymnasium's TimeLimit)."""
+
 if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="pnp_twin.learning.envs.gym_env:PickPlaceEnv")
+    gymnasium.register(
+        id=ENV_ID,
+        entry_point="pnp_twin.learning.envs.gym_env:PickPlaceEnv",
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )
 
 __all__ = [
     "CHANNELS",
     "ENV_ID",
+    "MAX_EPISODE_STEPS",
     "BeltCamera",
     "EnvError",
     "EnvFactory",

@@ -9,13 +9,18 @@ environments compute the paper's rewards, and draws the observations.
 
 The Gymnasium and PettingZoo environments in this package are thin layers over it; the HDQN
 trainer may use it directly.
+
+**Copies.** SimPy processes are generators, which cannot be copied; a driver instead remembers
+its seed and the actions since the last reset, and ``copy.deepcopy`` / ``pickle`` rebuild the
+line and replay them (:meth:`EpochDriver.__setstate__`). The copy continues exactly as the
+original would; its cost grows with the number of steps since the reset (``bench/bench_env.py``
+measures it).
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from bisect import bisect_right
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +29,8 @@ from typing import Any
 import numpy as np
 
 from policies.base import SettableRules
-from policies.rules import PAPER_RULES, RULES
+from policies.registry import rule_names
+from policies.rules import PAPER_RULES
 from twin.camera import CHANNELS, BeltCamera
 from twin.decision import Decision
 from twin.errors import UserError
@@ -88,14 +94,11 @@ def resolve_scenario(
 
 
 def check_rules(rules: Sequence[str]) -> tuple[str, ...]:
-    """Upper-cased rule names, each one known to the rule registry."""
-    out = tuple(str(r).upper() for r in rules)
-    if not out:
-        raise EnvError(f"rules: empty; give at least one of {', '.join(RULES)}")
-    for r in out:
-        if r not in RULES:
-            raise EnvError(f"rules: '{r}' is not a rule; allowed {', '.join(RULES)}")
-    return out
+    """Upper-cased rule names, each one known to the rule registry (one ``rules:`` line)."""
+    try:
+        return rule_names(rules)
+    except ValueError as e:
+        raise EnvError(f"rules: {e}") from None
 
 
 def is_rule_index(action: object, k: int) -> bool:
@@ -178,6 +181,40 @@ class EpochDriver:
         self._total_picks = [0] * n
         self._passed = 0
         self._passed_picked = 0
+        self._init = {
+            "scenario": self.scenario,
+            "seed": seed,
+            "rules": self.rules,
+            "channels": channels,
+        }
+        self.history: list[dict[int, int]] = []
+        """The actions since the last reset (what a copy replays)."""
+
+    # -- copies ---------------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """The constructor arguments, the seed and the actions since reset (no generators)."""
+        started = self.line is not None
+        return {
+            "init": self._init,
+            "seed": self.seed,
+            "history": list(self.history),
+            "started": started,
+        }
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Rebuild the line and replay the recorded actions: the same state, step by step."""
+        self.__init__(**state["init"])  # type: ignore[misc]
+        self.seed = state["seed"]
+        if state["started"]:
+            self.replay(self.seed, state["history"])
+
+    def replay(self, seed: int, history: Sequence[Mapping[int, int]]) -> list[int]:
+        """Reset with ``seed`` and apply ``history`` (what :attr:`history` recorded): the
+        driver is then exactly where the recorded one was. Returns the robots deciding."""
+        self.reset(seed)
+        for actions in history:
+            self.act(actions)
+        return self.deciding
 
     # -- running -------------------------------------------------------------------------------
     def reset(self, seed: int | None = None) -> list[int]:
@@ -193,9 +230,10 @@ class EpochDriver:
         self._total_picks[:] = [0] * n
         self._passed = self._passed_picked = 0
         self.steps = 0
+        self.history = []
         self.policy = _RecordingRules(n, self._claims)
         self.line = Line(self.scenario, self.policy, seed=self.seed, hold=True)
-        self.camera.attach(self.line)
+        self.camera.attach(self.line.belt)
         log.debug(
             "episode of %s, seed %d, %s", self.scenario.name, self.seed, self.scenario.termination
         )
@@ -225,6 +263,7 @@ class EpochDriver:
             self._started[robot] = now
             self._noops_before[robot] = decisions[(robot, NOOP)]
             self._options[robot] = None
+        self.history.append(dict(actions))
         line.gateway.release()
         self.steps += 1
         self._advance()
@@ -302,7 +341,7 @@ class EpochDriver:
         if line is None:
             return 0.0
         belt = line.belt
-        n = bisect_right(belt.fed, line.env.now - line.last_end / belt.speed)
+        n = belt.passed(line.env.now)
         holder = belt.holder
         picked = self._passed_picked
         for i in range(self._passed, n):
@@ -313,9 +352,12 @@ class EpochDriver:
 
     def observe(self, robot: int | None = None) -> np.ndarray:
         """The belt image (C, H, W) when ``robot`` is None, else the robot's window (C, H, w)."""
+        line = self.line
+        assert line is not None
+        now, gateway = line.env.now, line.gateway
         if robot is None:
-            return self.camera.belt()
-        return self.camera.window(robot)
+            return self.camera.belt(now, gateway.pending)
+        return self.camera.window(robot, now, gateway.pending, gateway.epochs)
 
     def reward(
         self,

@@ -10,7 +10,15 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from pnp_twin.learning.envs.common import (
+    EpisodeLimits,
+    ObservationView,
+    check_render_mode,
+    line_seed,
+    render_line,
+)
 from pnp_twin.learning.envs.driver import EnvError, EpochDriver
+from pnp_twin.learning.envs.render import RENDER_FPS, RENDER_MODES
 from policies.rules import PAPER_RULES
 from twin.scenario import Scenario
 
@@ -39,7 +47,11 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
     ## Observation space
     ``Box(0, 1, (C, H, W), uint8)``: the belt as an occupancy image, W = 64 cells along the
     belt (column 0 at the feeder) and H = 8 across (row 0 at the lower edge) by default
-    (the scenario's ``belt.grid``). Channels (``channels`` keeps the first C):
+    (the scenario's ``belt.grid``). With ``observation="image"`` the same grid as a picture
+    for convolutional policies: ``Box(0, 255, (C, s*H, s*W), uint8)``, each cell an
+    ``s x s`` block of 0 or 255, ``s`` the smallest scale giving sides of at least 36 pixels
+    ((1, 40, 320) on paper_baseline; Stable-Baselines3's ``CnnPolicy`` takes it as it is).
+    Channels (``channels`` keeps the first C):
 
     | C | name    | 1 in a cell when                                                  |
     |---|---------|-------------------------------------------------------------------|
@@ -59,9 +71,34 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
     has all robots deciding. The part stream is drawn from the seed.
 
     ## Episode end
-    Terminated when the simulated time reaches the scenario's ``duration`` (feeding stops).
-    Truncated after ``max_episode_steps`` steps (decision epochs). ``gymnasium.make(...,
-    max_episode_steps=M)`` adds Gymnasium's own TimeLimit on top, which truncates too.
+    Both ends, whichever comes first:
+
+    - **terminated** at the first epoch at or after the scenario's ``duration`` (simulated
+      seconds; feeding stops there; 600 s on paper_baseline);
+    - **truncated** after ``max_episode_steps`` decision epochs (steps) or, with
+      ``max_episode_time``, at the first epoch at or after that many simulated seconds (a
+      time-based limit, so that episodes under different policies cover the same horizon).
+
+    ``gymnasium.make("pnp_twin/PickPlace-v0")`` registers the paper's cap of 5000 steps in
+    its spec (``env.spec.max_episode_steps``; Gymnasium's TimeLimit applies it, override it
+    with ``gymnasium.make(..., max_episode_steps=M)``, or ``None`` for none). A directly
+    built ``PickPlaceEnv`` has no step cap unless given one. With the paper's 5000 steps a
+    600 s paper_baseline episode usually ends by the cap (near 520-560 simulated s,
+    depending on the policy): give ``max_episode_steps=None`` and ``max_episode_time`` (or a
+    shorter ``duration`` override) for equal horizons. Calling :meth:`step` after the end
+    raises :class:`EnvError`; call :meth:`reset`.
+
+    ## Rendering
+    ``render_mode="rgb_array"``: :meth:`render` returns the top view of the line as an
+    ``(H, W, 3)`` uint8 frame (belt, workspaces, parts, claimed parts in their robot's
+    colour, tools, bins; :mod:`pnp_twin.learning.envs.render`); ``"ansi"``: a text view of
+    the belt grid. ``metadata["render_fps"]`` is the frame rate a video of the steps plays
+    at (one frame per decision epoch), so ``gymnasium.wrappers.RecordVideo`` works.
+
+    ## Copies
+    ``copy.deepcopy(env)`` and ``pickle`` work at any time: the copy rebuilds the line from
+    the seed and replays the actions since :meth:`reset`, so it continues exactly as the
+    original (for planning and search from a state).
 
     ## Info
     ``tau``: simulated seconds the step took (discount by ``gamma**tau``); ``time``: the
@@ -79,16 +116,25 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
     - ``reward_weights``: (extrinsic, intrinsic) weights, default (1.0, 1.0).
     - ``noop_penalty``: the NooP penalty of eq. 2, default 0.01.
     - ``channels``: observation channels, 1 to 3 (default 1).
-    - ``max_episode_steps``: decision steps per episode, default 5000 (the paper's).
+    - ``max_episode_steps``: decision steps per episode (None: no step cap; the registered
+      spec adds 5000).
+    - ``max_episode_time``: simulated seconds per episode (truncation), None for none.
+    - ``observation``: ``"grid"`` (0/1 cells) or ``"image"`` (0/255, upscaled to >= 36 px).
+    - ``render_mode``: None, ``"rgb_array"`` or ``"ansi"``.
 
-    ``reset(seed=s)`` seeds the line from ``self.np_random``, so the same seed gives the
-    same part stream and, with the same actions, the same rollout.
+    ## Seeds
+    ``reset(seed=s)`` seeds ``self.np_random``, which draws the line's seed, so the same
+    ``s`` gives the same part stream and, with the same actions, the same rollout. The line's
+    seed is ``info["line_seed"]``; ``reset(options={"line_seed": k})`` uses ``k`` itself,
+    which is the seed of ``pnp-twin run --seed k`` and of seed ``k`` in ``pnp-twin evaluate``
+    (the same part stream), so an agent trained here is scored on the CLI's seeds.
 
     ## Version history
-    - v0: initial version.
+    - v0: initial version (rendering, copies, the registered step cap and the image
+      observation added without changing the dynamics).
     """
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": RENDER_MODES, "render_fps": RENDER_FPS}
 
     def __init__(
         self,
@@ -100,14 +146,17 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
         reward_weights: tuple[float, float] = (1.0, 1.0),
         noop_penalty: float = 0.01,
         channels: int = 1,
-        max_episode_steps: int = 5000,
+        max_episode_steps: int | None = None,
+        max_episode_time: float | None = None,
+        observation: str = "grid",
+        render_mode: str | None = None,
     ) -> None:
         if action_type not in ACTION_TYPES:
             raise EnvError(
                 f"action_type: {action_type!r} is not allowed; use one of {', '.join(ACTION_TYPES)}"
             )
-        if max_episode_steps < 1:
-            raise EnvError(f"max_episode_steps: {max_episode_steps} must be >= 1")
+        self.limits = EpisodeLimits.check(max_episode_steps, max_episode_time)
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         if len(reward_weights) != 2:
             raise EnvError("reward_weights: give two numbers (extrinsic, intrinsic)")
         self.driver = EpochDriver(
@@ -120,13 +169,14 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
         self.action_type = action_type
         self.reward_weights = (float(reward_weights[0]), float(reward_weights[1]))
         self.noop_penalty = float(noop_penalty)
-        self.max_episode_steps = int(max_episode_steps)
+        self.max_episode_steps = max_episode_steps
+        self.view = ObservationView(observation, self.driver.camera.shape)
         self.action_space: spaces.Space[Any]
         if action_type == "discrete":
             self.action_space = spaces.Discrete(k**n)
         else:
             self.action_space = spaces.MultiDiscrete([k] * n)
-        self.observation_space = spaces.Box(0, 1, self.driver.camera.shape, dtype=np.uint8)
+        self.observation_space = self.view.space
         self._powers = [k ** (n - 1 - i) for i in range(n)]
         self._k = k
         # joint actions decoded once (625 on paper_baseline), not digit by digit every step
@@ -134,6 +184,7 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
         if action_type == "discrete" and k**n <= 1 << 16:
             self._table = [self._digits(a) for a in range(k**n)]
         self._steps = 0
+        self._over = True  # no episode yet
 
     def decode(self, action: Any) -> list[int]:
         """The rule index per robot (0-based robots) of an action (do not modify the list)."""
@@ -162,11 +213,14 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        self.driver.reset(int(self.np_random.integers(2**31 - 1)))
+        self.driver.reset(line_seed(self.np_random, options))
         self._steps = 0
+        self._over = False
         return self._get_obs(), self._get_info(0.0)
 
     def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
+        if self._over:
+            raise EnvError("step: the episode is over (or not started); call reset()")
         driver = self.driver
         before = driver.now
         choice = self.decode(action)
@@ -177,11 +231,16 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
         for r in deciding:
             reward += driver.reward(r, weights, penalty)
         terminated = driver.done
-        truncated = not terminated and self._steps >= self.max_episode_steps
+        truncated = not terminated and self.limits.reached(self._steps, driver.now)
+        self._over = terminated or truncated
         return self._get_obs(), reward, terminated, truncated, self._get_info(driver.now - before)
 
+    def render(self) -> np.ndarray | str | None:  # type: ignore[override]
+        """The frame of ``render_mode`` (see the class docstring); None without one."""
+        return render_line(self.driver, self.render_mode)
+
     def _get_obs(self) -> np.ndarray:
-        return self.driver.observe(None)
+        return self.view(self.driver.observe(None))
 
     def _get_info(self, tau: float) -> dict[str, Any]:
         driver = self.driver
@@ -197,4 +256,5 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
             "deciding": list(driver.deciding),
             "options": options,
             "gripping_rate": driver.gripping_rate(),
+            "line_seed": driver.seed,
         }

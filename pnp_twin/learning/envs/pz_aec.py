@@ -10,7 +10,14 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import AECEnv
 
+from pnp_twin.learning.envs.common import (
+    EpisodeLimits,
+    ObservationView,
+    check_render_mode,
+    render_line,
+)
 from pnp_twin.learning.envs.driver import EnvError, EpochDriver, is_rule_index
+from pnp_twin.learning.envs.render import RENDER_FPS, RENDER_MODES
 from policies.rules import PAPER_RULES
 from twin.scenario import Scenario
 
@@ -53,8 +60,16 @@ class PickPlaceAEC(AECEnv[str, np.ndarray, int]):
 
     ## Episode end
     All agents terminate when the simulated time reaches the scenario's ``duration``; all
-    are truncated after ``max_episode_steps`` decision epochs. Options still running then
-    earn nothing.
+    are truncated after ``max_episode_steps`` decision epochs or at the first epoch after
+    ``max_episode_time`` simulated seconds (None: no cap, the default; a directly built
+    env, like the Gymnasium one, ends at ``duration`` unless capped). Options still running
+    then earn nothing. Stepping after the end raises :class:`EnvError`; call ``reset()``.
+
+    ## Rendering and copies
+    ``render_mode`` ``"rgb_array"`` (the top view of the line) or ``"ansi"`` (the belt grid
+    as text), at ``metadata["render_fps"]``; ``copy.deepcopy`` and ``pickle`` replay the seed
+    and the actions, so a copy continues exactly as the original. ``observation="image"``
+    gives 0/255 windows upscaled to sides of at least 36 pixels (see ``PickPlaceEnv``).
 
     ## Arguments
     ``scenario``, ``overrides``, ``termination`` (default ``t_continue``), ``rules``,
@@ -65,7 +80,12 @@ class PickPlaceAEC(AECEnv[str, np.ndarray, int]):
     - v0: initial version.
     """
 
-    metadata = {"name": "pnp_twin_pickplace_aec_v0", "render_modes": [], "is_parallelizable": False}
+    metadata = {
+        "name": "pnp_twin_pickplace_aec_v0",
+        "render_modes": RENDER_MODES,
+        "render_fps": RENDER_FPS,
+        "is_parallelizable": False,
+    }
 
     def __init__(
         self,
@@ -76,11 +96,14 @@ class PickPlaceAEC(AECEnv[str, np.ndarray, int]):
         reward_weights: tuple[float, float] = (1.0, 1.0),
         noop_penalty: float = 0.01,
         channels: int = 1,
-        max_episode_steps: int = 5000,
+        max_episode_steps: int | None = None,
+        max_episode_time: float | None = None,
+        observation: str = "grid",
+        render_mode: str | None = None,
     ) -> None:
         super().__init__()
-        if max_episode_steps < 1:
-            raise EnvError(f"max_episode_steps: {max_episode_steps} must be >= 1")
+        self.limits = EpisodeLimits.check(max_episode_steps, max_episode_time)
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         self.driver = EpochDriver(
             scenario, termination=termination, rules=rules, channels=channels, overrides=overrides
         )
@@ -88,11 +111,12 @@ class PickPlaceAEC(AECEnv[str, np.ndarray, int]):
         self.rules = self.driver.rules
         self.reward_weights = (float(reward_weights[0]), float(reward_weights[1]))
         self.noop_penalty = float(noop_penalty)
-        self.max_episode_steps = int(max_episode_steps)
+        self.max_episode_steps = max_episode_steps
         self.possible_agents = [agent_name(r) for r in range(self.driver.n_robots)]
         self._index = {a: r for r, a in enumerate(self.possible_agents)}
         camera = self.driver.camera
-        self._observation_space = spaces.Box(0, 1, camera.window_shape, dtype=np.uint8)
+        self.view = ObservationView(observation, camera.window_shape)
+        self._observation_space = self.view.space
         self._action_space = spaces.Discrete(len(self.rules))
         self.state_space = spaces.Box(0, 1, camera.shape, dtype=np.uint8)
         self.agents: list[str] = []
@@ -124,12 +148,14 @@ class PickPlaceAEC(AECEnv[str, np.ndarray, int]):
         self.agent_selection = self.possible_agents[self._queue[0]]
 
     def observe(self, agent: str) -> np.ndarray:
-        return self.driver.observe(self._index[agent])
+        return self.view(self.driver.observe(self._index[agent]))
 
     def state(self) -> np.ndarray:
         return self.driver.observe(None)
 
     def step(self, action: int | None) -> None:
+        if not self.agents:
+            raise EnvError("step: the episode is over (or not started); call reset()")
         agent = self.agent_selection
         if self.terminations[agent] or self.truncations[agent]:
             self._was_dead_step(action)
@@ -167,15 +193,16 @@ class PickPlaceAEC(AECEnv[str, np.ndarray, int]):
             info["time"], info["gripping_rate"] = now, rate
         self._queue = list(deciding)
         terminated = driver.done
-        truncated = not terminated and driver.steps >= self.max_episode_steps
+        truncated = not terminated and self.limits.reached(driver.steps, driver.now)
         if terminated or truncated:
             for a in self.agents:
                 self.terminations[a] = terminated
                 self.truncations[a] = truncated
 
-    def render(self) -> None:
-        """No rendering; the reports draw runs from their records."""
-        return None
+    def render(self) -> np.ndarray | str | None:  # type: ignore[override]
+        """The frame of ``render_mode``: ``rgb_array`` the top view of the line, ``ansi`` the
+        belt grid as text (:mod:`pnp_twin.learning.envs.render`); None without a mode."""
+        return render_line(self.driver, self.render_mode)
 
     def close(self) -> None:
         """Nothing to release."""

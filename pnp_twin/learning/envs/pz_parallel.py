@@ -10,8 +10,15 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
+from pnp_twin.learning.envs.common import (
+    EpisodeLimits,
+    ObservationView,
+    check_render_mode,
+    render_line,
+)
 from pnp_twin.learning.envs.driver import EnvError, EpochDriver, is_rule_index
 from pnp_twin.learning.envs.pz_aec import agent_name
+from pnp_twin.learning.envs.render import RENDER_FPS, RENDER_MODES
 from policies.rules import PAPER_RULES
 from twin.scenario import Scenario
 
@@ -46,7 +53,17 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
 
     ## Episode end
     All agents terminate when the simulated time reaches the scenario's ``duration``; all
-    are truncated after ``max_episode_steps`` steps; ``agents`` is then empty.
+    are truncated after ``max_episode_steps`` steps or at the first epoch after
+    ``max_episode_time`` simulated seconds (None: no cap, the default; a directly built
+    env, like the Gymnasium one, ends at ``duration`` unless capped). Options still running
+    then earn nothing. Stepping after the end raises :class:`EnvError`; call ``reset()``.
+
+    ## Rendering and copies
+    ``render_mode`` ``"rgb_array"`` (the top view of the line) or ``"ansi"`` (the belt grid
+    as text), at ``metadata["render_fps"]``; ``copy.deepcopy`` and ``pickle`` replay the seed
+    and the actions, so a copy continues exactly as the original. ``observation="image"``
+    gives 0/255 windows upscaled to sides of at least 36 pixels (see ``PickPlaceEnv``).
+    ``agents`` is empty once the episode is over.
 
     ## Arguments
     ``scenario``, ``overrides``, ``termination`` (default ``t_all``), ``rules``,
@@ -57,7 +74,11 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
     - v0: initial version.
     """
 
-    metadata = {"name": "pnp_twin_pickplace_parallel_v0", "render_modes": []}
+    metadata = {
+        "name": "pnp_twin_pickplace_parallel_v0",
+        "render_modes": RENDER_MODES,
+        "render_fps": RENDER_FPS,
+    }
 
     def __init__(
         self,
@@ -68,10 +89,13 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
         reward_weights: tuple[float, float] = (1.0, 1.0),
         noop_penalty: float = 0.01,
         channels: int = 1,
-        max_episode_steps: int = 5000,
+        max_episode_steps: int | None = None,
+        max_episode_time: float | None = None,
+        observation: str = "grid",
+        render_mode: str | None = None,
     ) -> None:
-        if max_episode_steps < 1:
-            raise EnvError(f"max_episode_steps: {max_episode_steps} must be >= 1")
+        self.limits = EpisodeLimits.check(max_episode_steps, max_episode_time)
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         self.driver = EpochDriver(
             scenario, termination=termination, rules=rules, channels=channels, overrides=overrides
         )
@@ -79,10 +103,11 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
         self.rules = self.driver.rules
         self.reward_weights = (float(reward_weights[0]), float(reward_weights[1]))
         self.noop_penalty = float(noop_penalty)
-        self.max_episode_steps = int(max_episode_steps)
+        self.max_episode_steps = max_episode_steps
         self.possible_agents = [agent_name(r) for r in range(self.driver.n_robots)]
         camera = self.driver.camera
-        self._observation_space = spaces.Box(0, 1, camera.window_shape, dtype=np.uint8)
+        self.view = ObservationView(observation, camera.window_shape)
+        self._observation_space = self.view.space
         self._action_space = spaces.Discrete(len(self.rules))
         self.state_space = spaces.Box(0, 1, camera.shape, dtype=np.uint8)
         self.agents: list[str] = []
@@ -113,7 +138,7 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
         dict[str, dict[str, Any]],
     ]:
         if not self.agents:
-            raise EnvError("step: the episode is over; call reset()")
+            raise EnvError("step: the episode is over (or not started); call reset()")
         driver = self.driver
         before = driver.now
         chosen: dict[int, int] = {}
@@ -131,7 +156,7 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
         weights, penalty = self.reward_weights, self.noop_penalty
         rewards = {a: driver.reward(r, weights, penalty) for r, a in enumerate(self.agents)}
         terminated = driver.done
-        truncated = not terminated and driver.steps >= self.max_episode_steps
+        truncated = not terminated and self.limits.reached(driver.steps, driver.now)
         observations, infos = self._observations(), self._infos(driver.now - before)
         terminations = dict.fromkeys(self.agents, terminated)
         truncations = dict.fromkeys(self.agents, truncated)
@@ -141,7 +166,8 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
 
     def _observations(self) -> dict[str, np.ndarray]:
         observe = self.driver.observe
-        return {a: observe(r) for r, a in enumerate(self.possible_agents)}
+        view = self.view
+        return {a: view(observe(r)) for r, a in enumerate(self.possible_agents)}
 
     def _infos(self, tau: float) -> dict[str, dict[str, Any]]:
         driver = self.driver
@@ -164,9 +190,10 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
     def state(self) -> np.ndarray:
         return self.driver.observe(None)
 
-    def render(self) -> None:
-        """No rendering; the reports draw runs from their records."""
-        return None
+    def render(self) -> np.ndarray | str | None:  # type: ignore[override]
+        """The frame of ``render_mode``: ``rgb_array`` the top view of the line, ``ansi`` the
+        belt grid as text (:mod:`pnp_twin.learning.envs.render`); None without a mode."""
+        return render_line(self.driver, self.render_mode)
 
     def close(self) -> None:
         """Nothing to release."""

@@ -1,0 +1,180 @@
+"""The ``calibrate`` command of ``pnp-twin``: fit a scenario's unknowns to measured points.
+
+It fits (``pnp_twin.studies.calibrate``) with a progress bar on stderr (evaluations, best
+objective so far), writes the calibrated scenario file and tables into ``--out``
+(``calibrate_output``) and the HTML report (``reports.calibration``), and prints the points
+table, or one JSON object with ``--json``. Re-running the same command resumes from the
+folder's journal without simulating again.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shlex
+import shutil
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich import box
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.studies.calibrate import Problem, calibrate
+from pnp_twin.studies.calibrate_eval import EVALS
+from pnp_twin.studies.calibrate_fields import check_distinct, parse_fit
+from pnp_twin.studies.calibrate_output import write_outputs
+from pnp_twin.studies.calibrate_targets import read_targets
+from pnp_twin.studies.plan import StudyError
+from policies import RULES
+from twin.loader import load_scenario, parse_sets
+from twin.output import dumps_json
+
+
+def _check_out(out: Path, fresh: bool) -> None:
+    if out.exists() and not out.is_dir():
+        raise StudyError(f"--out {out}: is a file; give a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    if fresh and (out / EVALS).is_dir():
+        shutil.rmtree(out / EVALS)
+
+
+def _problem(
+    scenario: str,
+    targets: Path,
+    fits: list[str],
+    sets: list[str] | None,
+    policy: list[str] | None,
+    replications: int,
+    max_evals: int,
+    profile: int,
+) -> tuple[Problem, dict[str, Any]]:
+    overrides = parse_sets(sets or [])
+    sc = load_scenario(scenario, overrides)
+    if not fits:
+        raise StudyError("--fit: give at least one field to fit, e.g. --fit robots.pick_time=0:0.2")
+    params = [parse_fit(f) for f in fits]
+    t = read_targets(targets)
+    check_distinct(params, list(t.varied))
+    policies = tuple(policy) if policy else tuple(RULES)
+    problem = Problem(sc, t, tuple(params), policies, replications, max_evals, profile)
+    return problem, overrides
+
+
+def _points_table(info: dict[str, Any]) -> Table:
+    t = Table(title="Measured vs predicted (95 % CI)", box=box.SIMPLE)
+    for c in ["point", *info["varied"], "KPI", "measured", "predicted", "residual", "policy"]:
+        t.add_column(c, justify="left" if c in ("KPI", "policy") else "right")
+    for r in info["points"]:
+        ci = "" if r["ci_low"] is None else f" [{r['ci_low']:.2f}, {r['ci_high']:.2f}]"
+        t.add_row(
+            str(r["point"]),
+            *(str(r[v]) for v in info["varied"]),
+            r["kpi"],
+            f"{r['target']:.4g}",
+            f"{r['predicted']:.2f}{ci}",
+            f"{r['residual']:+.2f}",
+            r["policy"],
+        )
+    return t
+
+
+def _fitted_table(info: dict[str, Any]) -> Table:
+    t = Table(title=f"Fitted (objective {info['objective']:.4g})", box=box.SIMPLE)
+    for c in ("field", "bounds", "start", "fitted", "objective within +1 for"):
+        t.add_column(c, justify="left" if c == "field" else "right")
+    for q in info["params"]:
+        lo, hi = q["near_optimal"]
+        span = "" if lo is None or math.isnan(lo) else f"{lo:.4g} .. {hi:.4g}"
+        t.add_row(q["name"], f"{q['low']:g} .. {q['high']:g}", f"{q['start']:.4g}",
+                  f"{q['value']:.4g}", span)
+    return t
+
+
+def _write_report(out: Path, err: Console) -> None:
+    try:
+        from reports.calibration import build_calibration_report
+    except ImportError as e:  # plotly missing: the tables are still there
+        err.print(f"note: report not written ({e})")
+        return
+    err.print(f"report: {build_calibration_report(out)}")
+
+
+@app.command("calibrate")
+def calibrate_cmd(
+    scenario: ScenarioArg,
+    targets: Annotated[
+        Path,
+        typer.Option("--targets", "-t", help="CSV of measured points (fields, KPIs, weight).",
+                     show_default=False),
+    ],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Output folder (rerun to resume).",
+                           show_default=False)
+    ],
+    fit: Annotated[
+        list[str] | None,
+        typer.Option("--fit", metavar="PATH=LO:HI",
+                     help="A numeric field to fit with its bounds, e.g. robots.bin_offset.1=0.2:0.8"
+                     "; PATH,PATH=LO:HI fits fields sharing one value (repeatable)."),
+    ] = None,
+    policy: Annotated[
+        list[str] | None,
+        typer.Option("--policy", "-p", help="Policy (repeatable); the prediction is the best of "
+                     "them at each point. Default: every rule."),
+    ] = None,
+    replications: Annotated[int, typer.Option("--replications", "-r", min=1,
+                                              help="Common-random-number replications.")] = 5,
+    max_evals: Annotated[int, typer.Option("--max-evals", min=1,
+                                           help="Optimiser evaluations at most.")] = 60,
+    profile: Annotated[int, typer.Option("--profile", min=0,
+                                         help="Profile points per parameter (0: none).")] = 7,
+    workers: Annotated[int | None, typer.Option("--workers", "-w",
+                                                help="Parallel runs. Default: CPU count.")] = None,
+    sets: SetOpt = None,
+    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    fresh: Annotated[bool, typer.Option("--fresh", help="Discard the journal, simulate anew.")] = False,
+    no_report: Annotated[bool, typer.Option("--no-report", help="Do not write report.html.")] = False,
+) -> None:
+    """Fit scenario fields so the twin reproduces measured points (a twin of your own line)."""
+    problem, overrides = _problem(
+        scenario, targets, fit or [], sets, policy, replications, max_evals, profile
+    )
+    _check_out(out, fresh)
+    w = workers if workers is not None else (os.cpu_count() or 1)
+    err = Console(stderr=True, highlight=False)
+    bar = Progress(
+        TextColumn("[bold]calibrate"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("evaluations  best objective {task.fields[best]}"),
+        TimeElapsedColumn(),
+        console=err,
+    )
+    task = bar.add_task("calibrate", total=max_evals, best="-")
+
+    def update(done: int, best: float) -> None:
+        bar.update(task, completed=done, total=max(done, max_evals), best=f"{best:.4g}")
+
+    with bar:
+        cal = calibrate(problem, out, workers=w, progress=update)
+    command = shlex.join(["pnp-twin", *sys.argv[1:]])
+    info = write_outputs(cal, out, scenario, overrides, command)
+    if not no_report:
+        _write_report(out, err)
+    if json_out:
+        keep = ("history", "profiles", "curves")
+        typer.echo(dumps_json({k: v for k, v in info.items() if k not in keep}, indent=2))
+        return
+    console = Console(highlight=False)
+    if not console.is_terminal:
+        console.width = max(console.width, 120)
+    console.print(_fitted_table(info))
+    console.print(_points_table(info))
+    console.print(f"scenario file: {info['scenario_file']}  ({info['evaluations']} evaluations, "
+                  f"{info['simulated_points']} points simulated, {info['replayed_points']} "
+                  f"replayed, {info['wall_time']:.0f} s)")

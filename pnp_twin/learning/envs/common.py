@@ -1,0 +1,98 @@
+"""What the three environments share: episode limits, the observation option, seeds and
+rendering (each a few lines, so the env classes stay thin layers over the driver)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from pnp_twin.learning.envs import render
+from pnp_twin.learning.envs.driver import EnvError, EpochDriver
+
+OBSERVATIONS = ("grid", "image")
+IMAGE_MIN_SIDE = 36
+"""The smallest image side Stable-Baselines3's ``CnnPolicy`` (NatureCNN) accepts."""
+
+
+@dataclass(frozen=True)
+class EpisodeLimits:
+    """Truncation: a cap on decision steps and/or on simulated seconds (None: no cap)."""
+
+    steps: int | None = None
+    time: float | None = None
+
+    @classmethod
+    def check(cls, steps: int | None, time: float | None) -> EpisodeLimits:
+        if steps is not None and (isinstance(steps, bool) or int(steps) != steps or steps < 1):
+            raise EnvError(f"max_episode_steps: {steps!r} is not allowed; give an integer >= 1")
+        if time is not None and not (math.isfinite(time) and time > 0):
+            raise EnvError(f"max_episode_time: {time!r} is not allowed; give seconds > 0")
+        return cls(None if steps is None else int(steps), None if time is None else float(time))
+
+    def reached(self, steps: int, now: float) -> bool:
+        """True once either cap is reached."""
+        return (self.steps is not None and steps >= self.steps) or (
+            self.time is not None and now >= self.time
+        )
+
+
+def image_scale(shape: Sequence[int]) -> int:
+    """Pixels per grid cell of the ``image`` observation: each side at least 36 pixels."""
+    return max(1, math.ceil(IMAGE_MIN_SIDE / min(shape[1], shape[2])))
+
+
+class ObservationView:
+    """The ``observation`` option: the 0/1 grid as it is, or a 0/255 upscaled image."""
+
+    def __init__(self, observation: str, shape: Sequence[int]) -> None:
+        if observation not in OBSERVATIONS:
+            raise EnvError(
+                f"observation: {observation!r} is not allowed; use one of {', '.join(OBSERVATIONS)}"
+            )
+        self.image = observation == "image"
+        c, h, w = shape
+        if self.image:
+            self.scale = image_scale(shape)
+            self.space = spaces.Box(0, 255, (c, h * self.scale, w * self.scale), dtype=np.uint8)
+        else:
+            self.scale = 1
+            self.space = spaces.Box(0, 1, (c, h, w), dtype=np.uint8)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        if not self.image:
+            return obs
+        s = self.scale
+        return obs.repeat(s, axis=1).repeat(s, axis=2) * np.uint8(255)
+
+
+def check_render_mode(mode: str | None, allowed: Sequence[str]) -> str | None:
+    if mode is not None and mode not in allowed:
+        raise EnvError(f"render_mode: {mode!r} is not allowed; use None or {', '.join(allowed)}")
+    return mode
+
+
+def render_line(driver: EpochDriver, mode: str | None) -> np.ndarray | str | None:
+    """The frame of ``mode`` for the driver's line now (None without a mode)."""
+    if mode is None:
+        return None
+    if driver.line is None:
+        raise EnvError("render: call reset() before render()")
+    if mode == "rgb_array":
+        return render.frame(driver.line)
+    return render.text(driver.line, driver.gripping_rate())
+
+
+def line_seed(rng: np.random.Generator, options: Mapping[str, Any] | None) -> int:
+    """The line's seed for a reset: ``options["line_seed"]`` (the CLI's ``--seed``) if
+    given, else drawn from the env's seeded generator."""
+    if options and options.get("line_seed") is not None:
+        seed = options["line_seed"]
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+            raise EnvError(f"options: line_seed {seed!r} is not allowed; give an integer >= 0")
+        return int(seed)
+    return int(rng.integers(2**31 - 1))

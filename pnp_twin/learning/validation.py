@@ -1,0 +1,75 @@
+"""Validation during training: the greedy policy against every single rule, paired by seed.
+
+Both trainings (:mod:`pnp_twin.learning.train` and :mod:`pnp_twin.learning.rollout_train`)
+write one row of :data:`VALIDATION_COLUMNS` per evaluation into ``eval.csv``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from policies.hdqn import TERMINATION
+from policies.rules import RULES
+from twin.decision import Policy
+from twin.loader import with_overrides
+from twin.run import simulate
+from twin.scenario import Scenario
+from twin.stats import t_interval
+
+VALIDATION_SEED_BASE = 500_000
+"""Validation seeds are 500,000 + i (training episodes use >= 1,000,000; evaluate 0..n-1)."""
+
+VALIDATION_COLUMNS = [
+    "gripping_rate",
+    "diff_vs_best_rule",
+    "diff_ci",
+    "best_rule",
+    "best_rule_gripping_rate",
+    "beats_best_rule",
+]
+"""The figures of one validation (:func:`validate`), the last columns of every eval.csv."""
+
+
+def validation_seeds(n: int) -> list[int]:
+    """The first ``n`` validation seeds."""
+    return [VALIDATION_SEED_BASE + i for i in range(n)]
+
+
+def eval_scenario(scenario: Scenario, mode: str, duration: float) -> Scenario:
+    """The scenario of evaluation runs: the mode's termination, a shorter feeding time."""
+    warmup = min(scenario.warmup, duration / 5.0)
+    return with_overrides(
+        scenario, {"termination": TERMINATION[mode], "duration": duration, "warmup": warmup}
+    )
+
+
+def rule_baselines(scenario: Scenario, seeds: list[int]) -> dict[str, list[float]]:
+    """Gripping rate per seed of every single rule (common random numbers)."""
+    from policies.registry import make_policy
+
+    return {
+        r: [simulate(scenario, make_policy(r), seed=s).kpis["gripping_rate"] for s in seeds]
+        for r in RULES
+    }
+
+
+def validate(
+    policy: Policy, scenario: Scenario, seeds: list[int], baselines: dict[str, list[float]]
+) -> dict[str, Any]:
+    """The greedy ``policy`` on the validation ``seeds`` against the best single rule there
+    (``baselines`` from :func:`rule_baselines`; paired, the same seeds for both): the
+    :data:`VALIDATION_COLUMNS`. It beats the rule when the paired 95 % interval is above 0."""
+    best = max(baselines, key=lambda r: float(np.mean(baselines[r])))
+    g = [simulate(scenario, policy, seed=s).kpis["gripping_rate"] for s in seeds]
+    diff = np.asarray(g) - np.asarray(baselines[best])
+    d_mean, d_low, _ = t_interval(list(diff), 0.95)
+    return {
+        "gripping_rate": float(np.mean(g)),
+        "diff_vs_best_rule": d_mean,
+        "diff_ci": d_mean - d_low,
+        "best_rule": best,
+        "best_rule_gripping_rate": float(np.mean(baselines[best])),
+        "beats_best_rule": int(d_low > 0.0),
+    }

@@ -1,0 +1,153 @@
+"""Predictions of a calibration: a line's KPIs at measured points, cached in a journal.
+
+The prediction at a point is the KPI under the best of the given policies there (by mean
+gripping rate over the replications, as a measured line runs its best rule), averaged over
+replications that use common random numbers: replication k of every point, policy and
+parameter vector sees the same part stream, so the objective changes smoothly with the
+parameters instead of jumping with the noise.
+
+Every evaluated point is journalled atomically as ``DIR/evals/<key>.json``, where the key
+hashes exactly what was simulated (the point's resolved scenario, the policies, the seeds,
+the KPIs). A rerun of an interrupted fit replays the optimiser's steps from the journal
+without simulating them again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pnp_twin.parallel import pool_map
+from pnp_twin.studies.execute import execute
+from pnp_twin.studies.plan import RunSpec, StudyError
+from twin.output import write_text
+from twin.scenario import Scenario
+from twin.stats import t_interval
+
+log = logging.getLogger(__name__)
+
+EVALS = "evals"
+BEST_BY = "gripping_rate"
+
+
+@dataclass(frozen=True)
+class PointPrediction:
+    """What the twin predicts at one point: the best policy, and per KPI mean and CI."""
+
+    policy: str
+    mean: dict[str, float]
+    ci_low: dict[str, float]
+    ci_high: dict[str, float]
+
+
+def _key(scenario: Scenario, policies: Sequence[str], seeds: Sequence[int], kpis: Sequence[str]) -> str:
+    what = {
+        "scenario": scenario.model_dump(mode="json", exclude={"source_dir", "name", "description"}),
+        "policies": list(policies),
+        "seeds": list(seeds),
+        "kpis": list(kpis),
+    }
+    text = json.dumps(what, sort_keys=True, default=str)
+    return hashlib.sha1(text.encode()).hexdigest()[:20]
+
+
+def _summarise(runs: dict[str, list[dict[str, float]]], kpis: Sequence[str]) -> PointPrediction:
+    """The best policy's mean and t-interval per KPI (ties: the first policy given)."""
+    means = {p: float(np.mean([r[BEST_BY] for r in rows])) for p, rows in runs.items()}
+    best = max(means, key=lambda p: means[p])
+    mean, low, high = {}, {}, {}
+    for k in kpis:
+        m, lo, hi = t_interval([r[k] for r in runs[best]])
+        mean[k], low[k], high[k] = m, lo, hi
+    return PointPrediction(best, mean, low, high)
+
+
+class Evaluator:
+    """Simulates points (policies x replications each), through the journal in ``folder``."""
+
+    def __init__(
+        self,
+        folder: Path,
+        policies: Sequence[str],
+        seeds: Sequence[int],
+        kpis: Sequence[str],
+        workers: int = 1,
+    ) -> None:
+        self.folder = Path(folder) / EVALS
+        self.folder.mkdir(parents=True, exist_ok=True)
+        for tmp in self.folder.glob(".*.tmp"):  # left by a write that was killed mid-way
+            tmp.unlink(missing_ok=True)
+        self.policies = tuple(policies)
+        self.seeds = tuple(seeds)
+        self.kpis = tuple(dict.fromkeys([BEST_BY, *kpis]))
+        self.workers = workers
+        self.simulated = 0  # points simulated by this evaluator (not replayed)
+        self.replayed = 0
+
+    def predict(self, scenarios: Sequence[Scenario], labels: Sequence[str]) -> list[PointPrediction]:
+        """The prediction at each scenario; journalled ones are read back, not simulated."""
+        keys = [_key(s, self.policies, self.seeds, self.kpis) for s in scenarios]
+        runs: dict[int, dict[str, list[dict[str, float]]]] = {}
+        todo = []
+        for i, key in enumerate(keys):
+            stored = self.folder / f"{key}.json"
+            if stored.is_file():
+                runs[i] = json.loads(stored.read_text(encoding="utf-8"))["runs"]
+                self.replayed += 1
+            else:
+                todo.append(i)
+        if todo:
+            fresh = self._simulate([scenarios[i] for i in todo], [labels[i] for i in todo])
+            for i, result in zip(todo, fresh, strict=True):
+                runs[i] = result
+                record = {"label": labels[i], "policies": list(self.policies), "runs": result}
+                write_text(json.dumps(record) + "\n", self.folder / f"{keys[i]}.json")
+                self.simulated += 1
+        return [_summarise(runs[i], self.kpis) for i in range(len(scenarios))]
+
+    def _simulate(
+        self, scenarios: Sequence[Scenario], labels: Sequence[str]
+    ) -> list[dict[str, list[dict[str, float]]]]:
+        specs = [
+            RunSpec(f"{i}|{p}|{k}", i, {}, p, k, seed, sc)
+            for i, sc in enumerate(scenarios)
+            for p in self.policies
+            for k, seed in enumerate(self.seeds)
+        ]
+        out: list[dict[str, list[Any]]] = [
+            {p: [None] * len(self.seeds) for p in self.policies} for _ in scenarios
+        ]
+
+        def keep(row: dict[str, Any]) -> None:
+            i, p, k = row["run_id"].split("|")
+            missing = [c for c in self.kpis if c not in row]
+            if missing:
+                raise StudyError(
+                    f"point {labels[int(i)]}: the line has no KPI {missing[0]} (robot KPIs "
+                    f"r<i>_... need robot i on the line)"
+                )
+            out[int(i)][p][int(k)] = {c: float(row[c]) for c in self.kpis}
+
+        try:
+            if self.workers > 1 and len(specs) > 1:
+                pool_map(execute, specs, keep, self.workers, preload=["pnp_twin.studies.execute"])
+            else:
+                for spec in specs:
+                    keep(execute(spec))
+        except StudyError:
+            raise
+        except Exception as e:  # a line the twin cannot run is the user's point, not a crash
+            log.debug("simulation failed", exc_info=True)
+            where = labels[0] if len(labels) == 1 else f"one of {', '.join(labels)}"
+            raise StudyError(f"point {where} cannot be simulated: {type(e).__name__}: {e}") from None
+        return out
+
+
+Progress = Callable[[int, float], None]

@@ -1,0 +1,190 @@
+"""The fast engine produces the SimPy twin's events exactly: parts, spans, decisions, KPIs.
+
+A matrix over the shipped scenarios, every rule and a per-robot mix, the three termination
+schemes, breakdowns, bins, acceleration limits, trace replay and seeds, plus a hypothesis
+property over random valid lines. Runs are short (tens of simulated seconds).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from typing import Any
+
+import pandas as pd
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from policies import RuleChoosingPolicy, make_policy
+from twin import simulate
+from twin.decision import Decision
+from twin.fast import EngineError
+from twin.loader import load_scenario, with_overrides
+from twin.run import RunResult
+from twin.scenario import Scenario
+
+SHORT = {"duration": 40.0, "warmup": 5.0}
+SCHEMES = ("t_continue", "t_all", "t_any")
+RULES = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT")
+
+
+def _kpi_text(kpis: dict[str, Any]) -> str:
+    return json.dumps(kpis, sort_keys=True, default=str)  # NaN -> NaN, compared as text
+
+
+def assert_same(scenario: Scenario, policy: str, seed: int | None = None) -> RunResult:
+    """Run both engines; every table and KPI must be identical (floats bit for bit)."""
+    n = scenario.robots.count
+    a = simulate(scenario, make_policy(policy, n), seed=seed, engine="simpy")
+    b = simulate(scenario, make_policy(policy, n), seed=seed, engine="fast")
+    assert a.meta["engine"] == "simpy" and b.meta["engine"] == "fast"
+    pd.testing.assert_frame_equal(a.parts, b.parts, check_exact=True)
+    pd.testing.assert_frame_equal(a.spans, b.spans, check_exact=True)
+    pd.testing.assert_frame_equal(a.decisions, b.decisions, check_exact=True)
+    assert _kpi_text(a.kpis) == _kpi_text(b.kpis)
+    assert a.sim_time == b.sim_time
+    return b
+
+
+def scenario(name: str, **overrides: Any) -> Scenario:
+    return load_scenario(name, {**SHORT, **overrides})
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize(
+    "name", ["paper_baseline", "two_robot", "trace_replay", "breakdowns", "paper_27"]
+)
+@pytest.mark.parametrize("rule", RULES)
+def test_shipped_scenarios_every_rule_and_scheme(name: str, rule: str, scheme: str) -> None:
+    result = assert_same(scenario(name, termination=scheme), rule)
+    assert result.kpis["parts_presented"] > 0
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize(
+    "mix", ["SPT,SPT,SPT,FIFO", "SIRO,SD,SIRO,LD", "LIFO,SIRO,SPT,FIFO", "SD,SD,SD,SIRO"]
+)
+def test_per_robot_mixes(mix: str, scheme: str) -> None:
+    assert_same(scenario("paper_baseline", termination=scheme), mix)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 7, 123])
+@pytest.mark.parametrize("rule", ["SIRO", "SPT", "SD"])
+def test_seeds(seed: int, rule: str) -> None:
+    assert_same(scenario("paper_baseline"), rule, seed=seed)
+
+
+FEATURES = {
+    "bins": {"bins.capacity": 6, "bins.change_time": 1.5},
+    "bins_every_part": {"bins.capacity": 1, "bins.change_time": 0.4},
+    "acceleration": {"robots.acceleration": 9.0},
+    "acceleration_and_bins": {
+        "robots.acceleration": 12.0,
+        "bins.capacity": 4,
+        "bins.change_time": 0.8,
+    },
+    "fixed_breakdowns": {
+        "robots.mtbf": 7.0,
+        "robots.mttr": 2.0,
+        "robots.failure_distribution": "fixed",
+    },
+    "exp_breakdowns": {"robots.mtbf": 6.0, "robots.mttr": 1.5},
+    "normal_gaps_uniform": {"feeder.arrival": "normal", "feeder.lateral": "uniform"},
+    "fixed_feed": {"feeder.arrival": "fixed", "feeder.rate": 9.0},
+    "gaps_and_overrides": {
+        "robots.workspace_gap": 0.05,
+        "robots.workspace_length": 0.45,
+        "robots.overrides": [
+            {"robot": 2, "arm_speed": 4.5, "acceleration": 6.0, "mtbf": 5.0, "mttr": 1.0},
+            {"robot": 4, "pick_time": 0.2, "bin_offset": [0.1, 0.3]},
+        ],
+    },
+}
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("feature", sorted(FEATURES))
+@pytest.mark.parametrize("policy", ["SPT", "SIRO", "SD,LIFO,SIRO,FIFO"])
+def test_features(feature: str, scheme: str, policy: str) -> None:
+    assert_same(scenario("paper_baseline", termination=scheme, **FEATURES[feature]), policy)
+
+
+def test_a_full_baseline_hour_of_feeding() -> None:
+    """Long enough for every rare branch the short runs might miss (one run per engine)."""
+    assert_same(load_scenario("paper_baseline", {"duration": 900.0}), "SPT", seed=3)
+
+
+class _Chooser(RuleChoosingPolicy):
+    name = "py-chooser"
+
+    def select_rule(self, decision: Decision) -> str:
+        return "SD" if decision.time % 2.0 < 1.0 else "FIFO"
+
+
+def test_auto_falls_back_to_simpy_for_python_policies() -> None:
+    sc = scenario("two_robot")
+    auto = simulate(sc, _Chooser(), engine="auto")
+    ref = simulate(sc, _Chooser(), engine="simpy")
+    assert auto.meta["engine"] == "simpy"
+    pd.testing.assert_frame_equal(auto.parts, ref.parts)
+    assert simulate(sc, make_policy("SD", 2), engine="auto").meta["engine"] == "fast"
+
+
+def test_fast_refuses_python_policies_and_unknown_engines() -> None:
+    sc = scenario("two_robot")
+    with pytest.raises(EngineError, match="engine fast: policy 'py-chooser'"):
+        simulate(sc, _Chooser(), engine="fast")
+    with pytest.raises(EngineError, match="'turbo' is not an engine; allowed simpy, fast, auto"):
+        simulate(sc, make_policy("SD", 2), engine="turbo")
+
+
+def test_importing_twin_does_not_import_numba() -> None:
+    code = "import sys, twin, twin.fast; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+@st.composite
+def lines(draw: st.DrawFn) -> tuple[Scenario, str, int]:
+    n = draw(st.integers(1, 4))
+    length = draw(st.floats(0.2, 0.6))
+    belt_speed = draw(st.floats(0.3, 1.2))
+    data: dict[str, Any] = {
+        "robots.count": n,
+        "robots.workspace_length": length,
+        "robots.workspace_gap": draw(st.sampled_from([0.0, 0.1])),
+        "belt.length": 0.3 + n * (length + 0.1) + 0.1,
+        "belt.speed": belt_speed,
+        "robots.arm_speed": belt_speed + draw(st.floats(0.5, 4.0)),
+        "robots.pick_time": draw(st.floats(0.0, 0.3)),
+        "robots.place_time": draw(st.floats(0.0, 0.3)),
+        "robots.acceleration": draw(st.sampled_from([0.0, 0.0, 5.0, 20.0])),
+        "feeder.rate": draw(st.floats(1.0, 20.0)),
+        "feeder.arrival": draw(st.sampled_from(["poisson", "normal", "fixed"])),
+        "bins.capacity": draw(st.sampled_from([0, 0, 1, 5])),
+        "bins.change_time": draw(st.sampled_from([0.0, 0.5, 2.0])),
+        "termination": draw(st.sampled_from(SCHEMES)),
+        "duration": 20.0,
+        "warmup": 2.0,
+    }
+    if draw(st.booleans()):
+        data["robots.mtbf"] = draw(st.floats(2.0, 20.0))
+        data["robots.mttr"] = draw(st.floats(0.1, 5.0))
+        data["robots.failure_distribution"] = draw(st.sampled_from(["exponential", "fixed"]))
+    rules = draw(st.lists(st.sampled_from(RULES), min_size=n, max_size=n))
+    policy = rules[0] if draw(st.booleans()) else ",".join(rules)
+    sc = with_overrides(Scenario(), data)
+    return sc, policy, draw(st.integers(0, 2**31 - 1))
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(lines())
+def test_random_lines_are_identical(case: tuple[Scenario, str, int]) -> None:
+    sc, policy, seed = case
+    result = assert_same(sc, policy, seed=seed)
+    kpis = result.kpis
+    assert kpis["parts_picked"] + kpis["parts_missed"] == kpis["parts_presented"]
+    assert math.isnan(kpis["gripping_rate"]) or 0.0 <= kpis["gripping_rate"] <= 100.0

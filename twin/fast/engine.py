@@ -1,0 +1,216 @@
+"""A line as arrays: the scenario, streams and policy turned into the kernel's inputs.
+
+:class:`FastLine` mirrors :class:`twin.line.Line`: the same seed split (feeder arrivals,
+lateral positions, policy, one stream per robot), the same feeder stream, the same derived
+constants (computed here in Python with the twin's own expressions, so they are the same
+doubles). Random draws the SimPy run makes during the run are pre-drawn: SIRO's
+``Generator.integers`` as the policy stream's raw ``next_uint32`` outputs (the kernel
+replays numpy's Lemire rejection), breakdowns as standard exponentials (``exponential(m)``
+is ``m * standard_exponential()``). If a stream or the span buffer runs out, the run starts
+again with twice the room, so the result never depends on the first guess.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections import Counter
+from typing import Any
+
+import numpy as np
+
+from twin.decision import Policy, RobotSpec
+from twin.fast import layout as L
+from twin.fast import unsupported_reason
+from twin.fast.kernel import run_events, start_robots
+from twin.feeder import Feeder
+from twin.line import DRAIN_SLACK, robot_specs
+from twin.records import Recorder
+from twin.scenario import Scenario
+
+
+class Unsupported(ValueError):
+    """The fast engine cannot run this policy; the message says why (auto uses SimPy)."""
+
+
+def rule_codes(policy: Policy, n_robots: int) -> list[int] | None:
+    """Per-robot rule codes when ``policy`` is a plain rule mix (policies.base.RuleMix)."""
+    cls = type(policy)
+    if cls.__name__ != "RuleMix" or cls.__module__ != "policies.base":
+        return None
+    rules = list(getattr(policy, "rules", []))
+    if len(rules) != n_robots or any(r not in L.RULE_NAMES[:-1] for r in rules):
+        return None
+    return [L.RULE_NAMES.index(r) for r in rules]
+
+
+def _robot_params(scenario: Scenario, specs: list[RobotSpec]) -> tuple[np.ndarray, np.ndarray]:
+    fp = np.zeros((len(specs), L.N_FP))
+    ip = np.zeros((len(specs), L.N_IP), dtype=np.int64)
+    width = scenario.belt.width
+    for spec in specs:
+        r = spec.index
+        a, b = spec.workspace
+        # as Robot.__init__ computes them
+        xs = (a, b, spec.bin[0])
+        ys = (0.0, width, spec.bin[1])
+        reach = math.hypot(max(xs) - min(xs), max(ys) - min(ys))
+        fp[r, L.BA], fp[r, L.BB] = a, b
+        fp[r, L.XLO] = a - reach * spec.belt_speed / spec.arm_speed
+        fp[r, L.QUAD] = spec.arm_speed**2 - spec.belt_speed**2
+        fp[r, L.VR], fp[r, L.ACC] = spec.arm_speed, spec.acceleration
+        fp[r, L.PICK], fp[r, L.PLACE] = spec.pick_time, spec.place_time
+        fp[r, L.BX], fp[r, L.BY] = spec.bin
+        fp[r, L.BASEX], fp[r, L.BASEY] = (a + b) / 2.0, width / 2.0
+        mtbf = scenario.robot_param(r + 1, "mtbf")
+        mttr = scenario.robot_param(r + 1, "mttr")
+        fp[r, L.MTBF], fp[r, L.MTTR] = mtbf, mttr
+        if mtbf > 0:
+            fixed = scenario.robots.failure_distribution == "fixed"
+            ip[r, L.FAILMODE] = L.FIXED if fixed else L.EXPONENTIAL
+    return fp, ip
+
+
+class FastLine:
+    """One run of one scenario with a rule mix, as arrays; :meth:`run` fills the records."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        policy: Policy,
+        seed: int | None = None,
+        duration: float | None = None,
+    ) -> None:
+        self.scenario = scenario
+        self.seed = scenario.seed if seed is None else seed
+        self.duration = scenario.duration if duration is None else duration
+        n = scenario.robots.count
+        streams = [np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(3 + n)]
+        b = scenario.belt
+        feeder = Feeder(scenario.feeder, b.width, streams[0], streams[1], scenario.source_dir)
+        self.fed, self.y, self.kind = feeder.stream(self.duration)
+        self.fed = np.ascontiguousarray(self.fed, dtype=np.float64)
+        self.y = np.ascontiguousarray(self.y, dtype=np.float64)
+        self.specs = robot_specs(scenario)
+        policy.reset(self.specs, streams[2])
+        codes = rule_codes(policy, n)
+        if codes is None:
+            raise Unsupported(unsupported_reason(policy) or "engine fast: unsupported policy")
+        self.policy = policy
+        self.policy_rng = streams[2]
+        self.failure_rngs = streams[3:]
+        self.fp, self.ip = _robot_params(scenario, self.specs)
+        self.ip[:, L.RULE] = codes
+        self.gp = np.zeros(L.N_GP)
+        self.gp[L.V] = b.speed
+        self.gp[L.TICK] = (b.length / b.grid[0]) / b.speed
+        self.last_end = self.specs[-1].workspace[1]
+        change = scenario.bins.change_time
+        self.end_at = self.duration + self.last_end / b.speed + DRAIN_SLACK + change
+        self.gp[L.END_AT] = self.end_at
+        self.gp[L.CHANGE] = change
+        self.gp[L.HALF], self.gp[L.TWO] = 0.5, 2.0
+        self.gi = np.zeros(L.N_GI, dtype=np.int64)
+        self.gi[L.SCHEME] = L.SCHEME_CODES[scenario.termination]
+        self.gi[L.CAPACITY] = scenario.bins.capacity
+        self.uses_siro = L.SIRO in codes
+        self.breaks = bool(self.ip[:, L.FAILMODE].any())
+
+    # -- streams ---------------------------------------------------------------------------
+    def _streams(self, siro_room: int, exp_room: int) -> tuple[np.ndarray, np.ndarray]:
+        """Pre-drawn draws from fresh copies of the policy and failure streams."""
+        siro = np.zeros(0, dtype=np.int64)
+        if self.uses_siro:
+            rng = copy.deepcopy(self.policy_rng)
+            siro = rng.integers(0, 2**32, size=siro_room, dtype=np.uint32).astype(np.int64)
+        n = len(self.specs)
+        exps = np.zeros((n, exp_room if self.breaks else 0))
+        if self.breaks:
+            for r in range(n):
+                if self.ip[r, L.FAILMODE] == L.EXPONENTIAL:
+                    rng = copy.deepcopy(self.failure_rngs[r])
+                    exps[r] = rng.standard_exponential(exp_room)
+        return siro, exps
+
+    def run(self) -> None:
+        """Feed for ``duration`` seconds, then drain (as Line.run), growing buffers if needed."""
+        n_parts = len(self.fed)
+        n = len(self.specs)
+        span_room = 4 * n_parts + 64 * n + 1024
+        siro_room = 2 * n_parts + 1024
+        mtbf = self.fp[:, L.MTBF]
+        mean = float(mtbf[mtbf > 0].min()) if self.breaks else 1.0
+        exp_room = int(4 * self.end_at / mean) + 64
+        while True:
+            status = self._attempt(span_room, siro_room, exp_room)
+            if status == L.ST_OK:
+                return
+            if status == L.ST_SPANS:
+                span_room *= 2
+            elif status == L.ST_SIRO:
+                siro_room *= 2
+            else:
+                exp_room *= 2
+
+    def _attempt(self, span_room: int, siro_room: int, exp_room: int) -> int:
+        n_parts = len(self.fed)
+        n = len(self.specs)
+        siro, exps = self._streams(siro_room, exp_room)
+        self.fs = np.zeros((n, L.N_FS))
+        self.ist = np.zeros((n, L.N_IS), dtype=np.int64)
+        self.gs = np.zeros(L.N_GS, dtype=np.int64)
+        self.gf = np.zeros(1)
+        self.holder = np.full(n_parts, -1, dtype=np.int64)
+        self.left_at = np.full(n_parts, math.inf)
+        self.rec_i = np.full((n_parts, 2), -1, dtype=np.int64)
+        self.rec_f = np.full((n_parts, 4), math.nan)
+        self.rec_f[:, 3] = 0.0
+        self.sp_i = np.zeros((span_room, 2), dtype=np.int64)
+        self.sp_f = np.zeros((span_room, 2))
+        self.counts = np.zeros((n, len(L.RULE_NAMES)), dtype=np.int64)
+        c_i = np.zeros(n_parts + 1, dtype=np.int64)
+        c_f = np.zeros((n_parts + 1, 3))
+        start_robots(self.fp, self.ip, self.fs, self.ist, self.gs, exps)
+        status = run_events(
+            self.fp, self.ip, self.gp, self.gi, self.fs, self.ist, self.gs, self.gf,
+            self.fed, self.y, self.holder, self.left_at, self.rec_i, self.rec_f,
+            self.sp_i, self.sp_f, self.counts, siro, exps, c_i, c_f, self.end_at,
+        )  # fmt: skip
+        self.gf[L.NOW] = self.end_at
+        return int(status)
+
+    # -- records ---------------------------------------------------------------------------
+    def recorder(self) -> Recorder:
+        """The run's records in the twin's Recorder, so tables are built by the same code."""
+        rec = Recorder(0)
+        rec.robot = self.rec_i[:, 0].tolist()
+        names = L.RULE_NAMES
+        rec.rule = [names[c] if c >= 0 else None for c in self.rec_i[:, 1].tolist()]
+        rec.decided_at = self.rec_f[:, 0].tolist()
+        rec.picked_at = self.rec_f[:, 1].tolist()
+        rec.placed_at = self.rec_f[:, 2].tolist()
+        rec.blocked = self.rec_f[:, 3].tolist()
+        k = int(self.gs[L.NSPANS])
+        states = [L.SPAN_NAMES[s] for s in self.sp_i[:k, 1].tolist()]
+        rec.spans = list(
+            zip(self.sp_i[:k, 0].tolist(), states, *self.sp_f[:k].T.tolist(), strict=True)
+        )
+        counts: Counter[tuple[int, str]] = Counter()
+        for r, c in zip(*np.nonzero(self.counts), strict=True):
+            counts[(int(r), names[c])] = int(self.counts[r, c])
+        rec.decisions = counts
+        return rec
+
+    @property
+    def belt(self) -> Any:
+        """What Recorder.parts_frame reads of a belt."""
+        return _BeltView(self.fed, self.y, self.kind, self.scenario.belt.speed)
+
+    @property
+    def now(self) -> float:
+        return float(self.gf[L.NOW])
+
+
+class _BeltView:
+    def __init__(self, fed: np.ndarray, y: np.ndarray, kind: list[str] | None, speed: float):
+        self.fed, self.y, self.kind, self.speed = fed, y, kind, speed

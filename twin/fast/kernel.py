@@ -1,0 +1,505 @@
+"""The compiled event loop: the SimPy twin's robots, gateway and bins as a state machine.
+
+Each robot is one slot of arrays. SimPy's event queue orders events by (time, priority,
+creation number); every robot has at most one live wake-up (a timeout, a release of its
+decision hold or a t_any interruption), so the loop scans the N slots for the smallest
+(time, priority, sequence) and resumes that robot at its program counter. Sequence numbers
+are handed out in the order the twin creates its events, so equal-time events resolve the
+same way. Every branch mirrors ``twin/robot.py``, ``twin/gateway.py`` and ``twin/bin.py``;
+the arithmetic is written operation for operation as there (see :mod:`twin.fast.mathlib`).
+
+State lives in plain arrays (see :mod:`twin.fast.layout` for the column names), so a run can
+be copied at any point and continued.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from twin.fast.layout import (
+    ACC,
+    ACTIVE,
+    APPROACH,
+    BA,
+    BASEX,
+    BASEY,
+    BB,
+    BINCOUNT,
+    BINREADY,
+    BOXES,
+    BX,
+    BY,
+    CAPACITY,
+    CHANGE,
+    CLAIMED,
+    DOWN,
+    DOWN0,
+    EPOCHS,
+    EXPECTED,
+    EXPIDX,
+    FAILMODE,
+    FIFO,
+    FIXED,
+    HALF,
+    LD,
+    LIFO,
+    MTBF,
+    MTTR,
+    NEXTFAIL,
+    NOOP,
+    NORMAL,
+    NOW,
+    NSPANS,
+    PART,
+    PC,
+    PC_APPROACH,
+    PC_DOWN,
+    PC_HELD,
+    PC_INTERRUPT,
+    PC_NOOP,
+    PC_PLACE,
+    PC_START,
+    PICK,
+    PLACE,
+    QUAD,
+    RULE,
+    S_BLOCKED,
+    S_DOWN,
+    S_INTERRUPTED,
+    S_NOOP,
+    S_WAIT,
+    SCHEME,
+    SD,
+    SEQ,
+    SIRO,
+    SIROIDX,
+    ST_EXPS,
+    ST_SIRO,
+    ST_SPANS,
+    STATUS,
+    T0,
+    T_ALL,
+    T_ANY,
+    T_CONTINUE,
+    TAPP,
+    TICK,
+    TOOLX,
+    TOOLY,
+    TWO,
+    TX,
+    TY,
+    URGENT,
+    VR,
+    WAIT0,
+    WAITING,
+    WAKE,
+    WPRIO,
+    WSEQ,
+    XLO,
+    V,
+)
+from twin.fast.mathlib import intercept_time, move_time, position_along, py_hypot, py_pow
+
+FREE = -1
+
+
+@njit(cache=True)
+def _schedule(fs, ist, gs, r, at, prio, pc):
+    fs[r, WAKE] = at
+    ist[r, WPRIO] = prio
+    ist[r, WSEQ] = gs[SEQ]
+    gs[SEQ] += 1
+    ist[r, ACTIVE] = 1
+    ist[r, PC] = pc
+
+
+@njit(cache=True)
+def _span(gs, sp_i, sp_f, r, state, start, end):
+    if end > start:
+        k = gs[NSPANS]
+        if k >= sp_i.shape[0]:
+            gs[STATUS] = ST_SPANS
+            return
+        sp_i[k, 0] = r
+        sp_i[k, 1] = state
+        sp_f[k, 0] = start
+        sp_f[k, 1] = end
+        gs[NSPANS] = k + 1
+
+
+@njit(cache=True)
+def _draw(fp, ip, ist, gs, exps, r, col):
+    mean = fp[r, col]
+    if ip[r, FAILMODE] == FIXED:
+        return mean
+    k = ist[r, EXPIDX]
+    if k >= exps.shape[1]:
+        gs[STATUS] = ST_EXPS
+        return math.inf
+    ist[r, EXPIDX] = k + 1
+    return mean * exps[r, k]
+
+
+@njit(cache=True)
+def _candidates(fp, fs, gp, fed, ys, holder, now, r, c_i, c_f):
+    """Robot._candidates: unclaimed parts whose interception point lies in [a, b]."""
+    v = gp[V]
+    px = fs[r, TOOLX]
+    py = fs[r, TOOLY]
+    a = fp[r, BA]
+    b = fp[r, BB]
+    quad = fp[r, QUAD]
+    acc = fp[r, ACC]
+    vv = v * v
+    vnow = v * now
+    x_lo = fp[r, XLO]
+    lo_x = x_lo
+    if 0.0 > x_lo:
+        lo_x = 0.0
+    lo = np.searchsorted(fed, now - b / v, side="left")
+    hi = np.searchsorted(fed, now - lo_x / v, side="right")
+    n = 0
+    for i in range(lo, hi):
+        if holder[i] != FREE:
+            continue
+        x = vnow - v * fed[i]
+        y = ys[i]
+        dx = x - px
+        dy = y - py
+        if acc > 0.0:
+            t = intercept_time(dx, dy, v, fp[r, VR], acc)
+        else:
+            t = (dx * v + math.sqrt(dx * dx * vv + quad * (dx * dx + dy * dy))) / quad
+        xi = x + v * t
+        if a <= xi and xi <= b:
+            c_i[n] = i
+            c_f[n, 0] = x
+            c_f[n, 1] = y
+            c_f[n, 2] = t
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _lemire(siro, gs, n):
+    """numpy Generator.integers(n) on a pre-drawn stream of next_uint32 outputs."""
+    rng = n - 1
+    if rng == 0:
+        return 0
+    excl = n
+    k = gs[SIROIDX]
+    if k >= siro.shape[0]:
+        gs[STATUS] = ST_SIRO
+        return 0
+    m = siro[k] * excl
+    k += 1
+    left = m & 0xFFFFFFFF
+    if left < excl:
+        thr = (0xFFFFFFFF - rng) % excl
+        while left < thr:
+            if k >= siro.shape[0]:
+                gs[STATUS] = ST_SIRO
+                gs[SIROIDX] = k
+                return 0
+            m = siro[k] * excl
+            k += 1
+            left = m & 0xFFFFFFFF
+    gs[SIROIDX] = k
+    return m >> 32
+
+
+@njit(cache=True)
+def _choose(fp, ip, gp, gs, siro, r, n, c_f):
+    """policies.rules applied to the candidates (furthest downstream first)."""
+    rule = ip[r, RULE]
+    if rule == FIFO:
+        return 0
+    if rule == LIFO:
+        return n - 1
+    if rule == SIRO:
+        return _lemire(siro, gs, n)
+    if rule == SD or rule == LD:
+        best = 0
+        for k in range(1, n):
+            if rule == SD and c_f[k, 1] > c_f[best, 1]:
+                best = k
+            elif rule == LD and c_f[k, 1] < c_f[best, 1]:
+                best = k
+        return best
+    # SPT: the smallest full cycle time, first of equals
+    v = gp[V]
+    bx = fp[r, BX]
+    by = fp[r, BY]
+    two = gp[TWO]
+    half = gp[HALF]
+    best = 0
+    best_c = math.inf
+    for k in range(n):
+        t = c_f[k, 2]
+        xi = c_f[k, 0] + v * t
+        d = py_pow(py_pow(bx - xi, two) + py_pow(by - c_f[k, 1], two), half)
+        transfer = move_time(d, fp[r, VR], fp[r, ACC])
+        c = t + fp[r, PICK] + transfer + fp[r, PLACE]
+        if k == 0 or c < best_c:
+            best = k
+            best_c = c
+    return best
+
+
+@njit(cache=True)
+def _next_entry(gp, fed, holder, now, x):
+    """Belt.next_entry: time until the next unclaimed part upstream of x reaches it."""
+    v = gp[V]
+    lag = x / v
+    i = np.searchsorted(fed, now - lag, side="right")
+    n = fed.shape[0]
+    while i < n and (holder[i] != FREE or fed[i] + lag <= now):
+        i += 1
+    if i >= n:
+        return math.inf
+    return fed[i] + lag - now
+
+
+# -- the gateway ---------------------------------------------------------------------------
+@njit(cache=True)
+def _open(fs, ist, gs, mask, now):
+    gs[EPOCHS] += 1
+    for i in range(ist.shape[0]):  # in robot order, so upstream robots claim first
+        if mask[i]:
+            ist[i, WAITING] = 0
+            _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
+
+
+@njit(cache=True)
+def _maybe_all(fs, ist, gs, now):
+    n = ist.shape[0]
+    mask = np.zeros(n, np.bool_)
+    some = False
+    for i in range(n):
+        if ist[i, DOWN] == 0:
+            if ist[i, WAITING] == 0:
+                return
+            mask[i] = True
+            some = True
+    if some:
+        _open(fs, ist, gs, mask, now)
+
+
+@njit(cache=True)
+def _expected_waiting(ist):
+    """(expected is non-empty, expected <= waiting)."""
+    some = False
+    for i in range(ist.shape[0]):
+        if ist[i, EXPECTED]:
+            some = True
+            if not ist[i, WAITING]:
+                return some, False
+    return some, True
+
+
+@njit(cache=True)
+def _join_any(fs, ist, gs, r, now):
+    n = ist.shape[0]
+    some, _ = _expected_waiting(ist)
+    if not some:
+        ist[r, EXPECTED] = 1
+        for o in range(n):
+            if o != r and ist[o, CLAIMED] >= 0 and fs[o, APPROACH] > now:
+                _schedule(fs, ist, gs, o, now, URGENT, PC_INTERRUPT)
+                ist[o, EXPECTED] = 1
+    else:
+        ist[r, EXPECTED] = 1
+    _, sub = _expected_waiting(ist)
+    if sub:
+        mask = ist[:, EXPECTED] == 1
+        ist[:, EXPECTED] = 0
+        _open(fs, ist, gs, mask, now)
+
+
+@njit(cache=True)
+def _down(fs, ist, gi, gs, r, now):
+    ist[r, WAITING] = 0
+    ist[r, EXPECTED] = 0
+    if gi[SCHEME] == T_ALL:
+        _maybe_all(fs, ist, gs, now)
+    elif gi[SCHEME] == T_ANY:
+        some, sub = _expected_waiting(ist)
+        if some and sub:  # the twin leaves `expected` set here; so does this
+            _open(fs, ist, gs, ist[:, EXPECTED] == 1, now)
+
+
+@njit(cache=True)
+def _free(fs, ist, gi, gs, r, now):
+    ist[r, PC] = PC_HELD
+    ist[r, ACTIVE] = 0
+    fs[r, WAIT0] = now
+    ist[r, WAITING] = 1
+    if gi[SCHEME] == T_ALL:
+        _maybe_all(fs, ist, gs, now)
+    else:
+        _join_any(fs, ist, gs, r, now)
+
+
+# -- the robot -----------------------------------------------------------------------------
+@njit(cache=True)
+def run_events(
+    fp, ip, gp, gi, fs, ist, gs, gf, fed, ys, holder, left_at,
+    rec_i, rec_f, sp_i, sp_f, counts, siro, exps, c_i, c_f, stop_at,
+):  # fmt: skip
+    """Process events with time < stop_at; returns the status (0 = ok)."""
+    n_rob = ist.shape[0]
+    v = gp[V]
+    scheme = gi[SCHEME]
+    capacity = gi[CAPACITY]
+    while gs[STATUS] == 0:
+        r = -1
+        for i in range(n_rob):
+            if ist[i, ACTIVE]:
+                if r < 0:
+                    r = i
+                else:
+                    w, bw = fs[i, WAKE], fs[r, WAKE]
+                    if w < bw or (
+                        w == bw
+                        and (
+                            ist[i, WPRIO] < ist[r, WPRIO]
+                            or (ist[i, WPRIO] == ist[r, WPRIO] and ist[i, WSEQ] < ist[r, WSEQ])
+                        )
+                    ):
+                        r = i
+        if r < 0 or fs[r, WAKE] >= stop_at:
+            break
+        now = fs[r, WAKE]
+        gf[NOW] = now
+        ist[r, ACTIVE] = 0
+        pc = ist[r, PC]
+        top = False  # go to the top of the loop (failure check)
+        decide = False  # go straight to the candidates
+        if pc == PC_START:
+            top = True
+        elif pc == PC_NOOP:
+            _span(gs, sp_i, sp_f, r, S_NOOP, fs[r, T0], now)
+            top = True
+        elif pc == PC_HELD:
+            _span(gs, sp_i, sp_f, r, S_WAIT, fs[r, WAIT0], now)
+            decide = True
+        elif pc == PC_APPROACH:  # gripped: move to the bin and place
+            part = ist[r, PART]
+            ist[r, CLAIMED] = -1
+            t0 = fs[r, T0]
+            rec_i[part, 0] = r
+            rec_i[part, 1] = ip[r, RULE]
+            rec_f[part, 0] = t0
+            rec_f[part, 1] = t0 + fs[r, TAPP]
+            v_r = fp[r, VR]
+            acc = fp[r, ACC]
+            dist = py_hypot(fp[r, BX] - fs[r, TX], fp[r, BY] - fs[r, TY])
+            if acc <= 0.0:
+                arrive = now + dist / v_r
+            else:
+                arrive = now + move_time(dist, v_r, acc)
+            start = arrive
+            if fs[r, BINREADY] > arrive:
+                start = fs[r, BINREADY]
+            done = start + fp[r, PLACE]
+            ist[r, BINCOUNT] += 1
+            if capacity and ist[r, BINCOUNT] >= capacity:
+                ist[r, BINCOUNT] = 0
+                ist[r, BOXES] += 1
+                fs[r, BINREADY] = done + gp[CHANGE]
+            blocked = start - arrive
+            rec_f[part, 2] = done
+            if blocked > 0.0:
+                rec_f[part, 3] = blocked
+                _span(gs, sp_i, sp_f, r, S_BLOCKED, arrive, arrive + blocked)
+            _schedule(fs, ist, gs, r, now + (done - now), NORMAL, PC_PLACE)
+        elif pc == PC_PLACE:
+            fs[r, TOOLX] = fp[r, BX]
+            fs[r, TOOLY] = fp[r, BY]
+            top = True
+        elif pc == PC_INTERRUPT:
+            part = ist[r, PART]
+            holder[part] = FREE
+            left_at[part] = math.inf
+            ist[r, CLAIMED] = -1
+            t0 = fs[r, T0]
+            _span(gs, sp_i, sp_f, r, S_INTERRUPTED, t0, now)
+            x, y = position_along(
+                fs[r, TOOLX], fs[r, TOOLY], fs[r, TX], fs[r, TY], now - t0, fp[r, VR], fp[r, ACC]
+            )
+            fs[r, TOOLX] = x
+            fs[r, TOOLY] = y
+            top = True
+        elif pc == PC_DOWN:
+            _span(gs, sp_i, sp_f, r, S_DOWN, fs[r, DOWN0], now)
+            ist[r, DOWN] = 0
+            fs[r, NEXTFAIL] = now + _draw(fp, ip, ist, gs, exps, r, MTBF)
+            if scheme != T_CONTINUE:
+                _free(fs, ist, gi, gs, r, now)
+            else:
+                decide = True
+        if top:
+            if now >= fs[r, NEXTFAIL]:  # a due failure takes effect now
+                ist[r, DOWN] = 1
+                _down(fs, ist, gi, gs, r, now)
+                fs[r, DOWN0] = now
+                _schedule(
+                    fs, ist, gs, r, now + _draw(fp, ip, ist, gs, exps, r, MTTR), NORMAL, PC_DOWN
+                )
+            elif scheme != T_CONTINUE:
+                _free(fs, ist, gi, gs, r, now)
+            else:
+                decide = True
+        if decide:
+            _decide(
+                fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i, c_f, r, now, v
+            )
+    return gs[STATUS]
+
+
+@njit(cache=True)
+def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i, c_f, r, now, v):
+    """Look at the candidates: pick one (claim it, start the approach) or take a NooP."""
+    n = _candidates(fp, fs, gp, fed, ys, holder, now, r, c_i, c_f)
+    fs[r, T0] = now
+    if n == 0:
+        counts[r, NOOP] += 1
+        wait = _next_entry(gp, fed, holder, now, fp[r, BA])
+        tick = gp[TICK]
+        if tick < wait:
+            wait = tick
+        if now + wait <= now:  # too small to move the clock: a NooP must let time pass
+            wait = tick
+        _schedule(fs, ist, gs, r, now + wait, NORMAL, PC_NOOP)
+        return
+    k = _choose(fp, ip, gp, gs, siro, r, n, c_f)
+    counts[r, ip[r, RULE]] += 1
+    part = c_i[k]
+    t = c_f[k, 2]
+    fs[r, TX] = c_f[k, 0] + v * t
+    fs[r, TY] = c_f[k, 1]
+    fs[r, TAPP] = t
+    holder[part] = r
+    left_at[part] = now + t
+    ist[r, CLAIMED] = part
+    ist[r, PART] = part
+    fs[r, APPROACH] = now + t
+    _schedule(fs, ist, gs, r, now + (t + fp[r, PICK]), NORMAL, PC_APPROACH)
+
+
+@njit(cache=True)
+def start_robots(fp, ip, fs, ist, gs, exps):
+    """Robot.__init__ and Line start: first failures drawn, processes initialised in order."""
+    for r in range(ist.shape[0]):
+        fs[r, TOOLX] = fp[r, BASEX]
+        fs[r, TOOLY] = fp[r, BASEY]
+        fs[r, NEXTFAIL] = math.inf
+        fs[r, APPROACH] = -math.inf
+        ist[r, CLAIMED] = -1
+        if ip[r, FAILMODE] != 0:
+            fs[r, NEXTFAIL] = _draw(fp, ip, ist, gs, exps, r, MTBF)
+    for r in range(ist.shape[0]):
+        _schedule(fs, ist, gs, r, 0.0, URGENT, PC_START)

@@ -1,0 +1,45 @@
+"""Column names of the fast engine's state arrays (plain integer constants).
+
+Robot parameters ``fp``/``ip`` and robot state ``fs``/``ist`` have one row per robot;
+``gp``/``gi`` are line parameters, ``gs``/``gf`` the line's state (event counter, gateway
+epochs, stream positions, the clock).
+"""
+
+# robot float parameters fp[r, .]
+BA, BB, XLO, QUAD, VR, ACC, PICK, PLACE, BX, BY, BASEX, BASEY, MTBF, MTTR = range(14)
+N_FP = 14
+# robot int parameters ip[r, .]
+RULE, FAILMODE = range(2)
+N_IP = 2
+NOFAIL, EXPONENTIAL, FIXED = range(3)
+# rule codes, then the NooP column of the decision counts
+FIFO, LIFO, SIRO, SD, LD, SPT, NOOP = range(7)
+RULE_NAMES = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT", "NooP")
+# line float parameters gp[.]
+V, TICK, END_AT, CHANGE, HALF, TWO = range(6)
+N_GP = 6
+# line int parameters gi[.]
+SCHEME, CAPACITY = range(2)
+N_GI = 2
+T_CONTINUE, T_ALL, T_ANY = range(3)
+SCHEME_CODES = {"t_continue": T_CONTINUE, "t_all": T_ALL, "t_any": T_ANY}
+# robot float state fs[r, .]
+TOOLX, TOOLY, NEXTFAIL, APPROACH, T0, TAPP, TX, TY, WAKE, WAIT0, BINREADY, DOWN0 = range(12)
+N_FS = 12
+# robot int state ist[r, .]
+PC, ACTIVE, WPRIO, WSEQ, CLAIMED, PART, DOWN, WAITING, EXPECTED = range(9)
+BINCOUNT, BOXES, EXPIDX = range(9, 12)
+N_IS = 12
+# line int state gs[.]
+SEQ, EPOCHS, SIROIDX, NSPANS, STATUS = range(5)
+N_GS = 5
+NOW = 0  # gf[NOW]
+# program counters: where a robot resumes when its wake-up is processed
+PC_START, PC_NOOP, PC_HELD, PC_APPROACH, PC_PLACE, PC_INTERRUPT, PC_DOWN = range(7)
+# SimPy event priorities
+URGENT, NORMAL = 0, 1
+# span states
+S_WAIT, S_INTERRUPTED, S_NOOP, S_BLOCKED, S_DOWN = range(5)
+SPAN_NAMES = ("wait", "interrupted", "noop", "blocked", "down")
+# run status
+ST_OK, ST_SPANS, ST_SIRO, ST_EXPS = range(4)

@@ -1,0 +1,207 @@
+"""Recorded arrival traces: the CSV a ``trace`` feeder replays, read and checked row by row.
+
+A trace is UTF-8 CSV (a leading BOM is fine) with a header naming the columns ``time``
+(s from the start of the recording), ``y`` (m across the belt, 0 = lower edge) and,
+optionally, ``kind`` (free text, at most 64 characters); no other column. Every row holds
+finite numbers, times are >= 0 and non-decreasing, every y lies on the belt. Each mistake
+is one :class:`TraceError` line naming the file, the line and the value.
+
+Wall-clock times: when the first time is at least :data:`EPOCH` s (a Unix time after March
+1973, far longer than any recording), the times are taken as wall-clock (epoch) seconds and
+offset so that the first part arrives at t = 0; the offset is logged (INFO) and kept in
+:attr:`Trace.offset`.
+
+Duration: :func:`check_replay` refuses a run whose ``duration`` goes past the trace's end
+(its last arrival plus one mean gap), since the feed would stop and dilute every rate, and
+a run whose measurement window holds no part of the trace. The message gives the span and
+the duration to use (``--set duration=...``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from twin.errors import ScenarioError, clip, read_user_text
+from twin.scenario import Scenario
+
+log = logging.getLogger(__name__)
+
+EPOCH = 1e8  # s: a first time this late is a wall-clock (epoch) stamp, not a run time
+MAX_BYTES = 40_000_000  # about two million rows: within a run's budget (twin.budget)
+MAX_KIND = 64
+COLUMNS = ("time", "y", "kind")
+
+
+class TraceError(ScenarioError):
+    """A trace file that cannot be replayed; the message is one line."""
+
+
+@dataclass(frozen=True)
+class Trace:
+    """A trace as replayed: arrival times (offset applied), lateral positions, kinds."""
+
+    path: Path
+    times: np.ndarray
+    ys: np.ndarray
+    kinds: list[str] | None
+    offset: float = 0.0
+
+    @property
+    def end(self) -> float:
+        """When the recording ends: the last arrival plus one mean gap (at least 1 s)."""
+        n, first, last = len(self.times), float(self.times[0]), float(self.times[-1])
+        gap = (last - first) / (n - 1) if n > 1 else 0.0
+        return last + max(gap, 1.0)
+
+
+def trace_file(scenario: Scenario) -> Path | None:
+    """The trace a scenario replays, resolved against its file's folder; None if none."""
+    if scenario.feeder.arrival != "trace" or not scenario.feeder.trace:
+        return None
+    path = Path(scenario.feeder.trace)
+    if not path.is_absolute() and scenario.source_dir:
+        path = Path(scenario.source_dir) / path
+    return path
+
+
+def _header(path: Path, header: list[str] | None) -> list[str]:
+    where = f"feeder.trace: '{path}'"
+    if header is None:
+        raise TraceError(f"{where} is empty; give a header line time,y[,kind] and one row per part")
+    names = [h.strip() for h in header]
+    unknown = [h for h in names if h not in COLUMNS]
+    missing = [c for c in ("time", "y") if c not in names]
+    if missing or unknown:
+        bad = f"lacks column {missing[0]}" if missing else f"has unknown column '{unknown[0]}'"
+        raise TraceError(
+            f"{where} line 1: the header {clip(','.join(names), 40)!r} {bad}; it needs a "
+            "header with columns time, y[, kind]"
+        )
+    if len(set(names)) != len(names):
+        raise TraceError(f"{where} line 1: the header names a column twice")
+    return names
+
+
+def _number(path: Path, line: int, column: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise TraceError(
+            f"feeder.trace: '{path}' line {line}: {column} {clip(text, 30)!r} is non-numeric; "
+            f"give {column} as a number"
+        ) from None
+    if not math.isfinite(value):
+        raise TraceError(
+            f"feeder.trace: '{path}' line {line}: {column} {text.strip()} is not a finite number"
+        )
+    return value
+
+
+def _rows(path: Path, text: str) -> tuple[list[float], list[float], list[str] | None, list[int]]:
+    reader = csv.reader(io.StringIO(text, newline=""))
+    names = _header(path, next(reader, None))
+    at = {name: i for i, name in enumerate(names)}
+    times: list[float] = []
+    ys: list[float] = []
+    kinds: list[str] | None = [] if "kind" in at else None
+    lines: list[int] = []
+    for row in reader:
+        line = reader.line_num
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(names):
+            raise TraceError(
+                f"feeder.trace: '{path}' line {line}: {len(row)} values for the header's "
+                f"{len(names)} columns ({','.join(names)})"
+            )
+        lines.append(line)
+        times.append(_number(path, line, "time", row[at["time"]]))
+        ys.append(_number(path, line, "y", row[at["y"]]))
+        if kinds is not None:
+            kind = row[at["kind"]].strip()
+            if len(kind) > MAX_KIND:
+                raise TraceError(
+                    f"feeder.trace: '{path}' line {line}: kind is {len(kind)} characters; "
+                    f"at most {MAX_KIND} allowed"
+                )
+            kinds.append(kind)
+    if not times:
+        raise TraceError(
+            f"feeder.trace: '{path}' has a header but no rows; give one row time,y[,kind] per part"
+        )
+    return times, ys, kinds, lines
+
+
+def load_trace(path: Path, width: float) -> Trace:
+    """Read and check a trace for a belt ``width`` m wide (see the module docstring)."""
+    text = read_user_text(path, "feeder.trace", MAX_BYTES, TraceError)
+    t_list, y_list, kinds, lines = _rows(path, text)
+    times, ys = np.array(t_list), np.array(y_list)
+    neg = np.flatnonzero(times < 0)
+    if len(neg):
+        i = int(neg[0])
+        raise TraceError(
+            f"feeder.trace: '{path}' line {lines[i]}: time {times[i]:g} is negative; times "
+            "are seconds from the start of the recording, >= 0"
+        )
+    back = np.flatnonzero(np.diff(times) < 0)
+    if len(back):
+        i = int(back[0]) + 1
+        raise TraceError(
+            f"feeder.trace: '{path}' line {lines[i]}: time {times[i]:g} is before the row "
+            f"above ({times[i - 1]:g}); times must be non-decreasing"
+        )
+    off = np.flatnonzero((ys < 0) | (ys > width))
+    if len(off):
+        i = int(off[0])
+        raise TraceError(
+            f"feeder.trace: '{path}' line {lines[i]}: y {ys[i]:g} is outside the belt "
+            f"(0..{width:g} m, belt.width)"
+        )
+    offset = 0.0
+    if times[0] >= EPOCH:
+        offset = float(times[0])
+        times = times - offset
+        log.info(
+            "trace %s: times from %.0f s look like wall-clock (epoch) seconds; offset so the "
+            "first part arrives at t = 0",
+            path,
+            offset,
+        )
+    return Trace(path, times, ys, kinds, offset)
+
+
+def read_trace(path: Path, width: float) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
+    """(times, y, kinds or None) of a trace CSV with columns time, y[, kind]."""
+    trace = load_trace(path, width)
+    return trace.times, trace.ys, trace.kinds
+
+
+def check_replay(scenario: Scenario) -> Trace | None:
+    """The trace ``scenario`` replays, checked against its duration and warm-up."""
+    path = trace_file(scenario)
+    if path is None:
+        return None
+    trace = load_trace(path, scenario.belt.width)
+    first, last, end = float(trace.times[0]), float(trace.times[-1]), trace.end
+    span = f"{len(trace.times)} parts from {first:g} to {last:g} s"
+    if scenario.duration > end + 1e-9:
+        raise TraceError(
+            f"duration: {scenario.duration:g} s runs past the end of the trace '{path}' "
+            f"({span}), so the feed would stop early; give duration <= {end:.6g} "
+            f"(--set duration={math.floor(end * 1000) / 1000:g})"
+        )
+    counted = int(((trace.times >= scenario.warmup) & (trace.times < scenario.duration)).sum())
+    if counted == 0:
+        raise TraceError(
+            f"warmup: no part of the trace '{path}' ({span}) is fed in the measurement window "
+            f"[{scenario.warmup:g}, {scenario.duration:g}) s; lower warmup or raise duration"
+        )
+    return trace
