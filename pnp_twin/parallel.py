@@ -22,6 +22,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from functools import partial
 from typing import Any
 
 from twin.errors import UserError
@@ -105,6 +106,29 @@ def pool_map(
             pool.shutdown(wait=False, cancel_futures=True)
             raise
 
+
+def _indexed(fn: Callable[[Any], Any], job: tuple[int, Any]) -> tuple[int, Any]:
+    return job[0], fn(job[1])
+
+
+def pool_map_ordered(
+    fn: Callable[[Any], Any],
+    items: Sequence[Any],
+    workers: int,
+    preload: Sequence[str] = (),
+    on_result: Callable[[Any], None] | None = None,
+) -> list[Any]:
+    """:func:`pool_map` with the results returned in the order of ``items`` (whatever the
+    order they finish in); ``on_result`` still sees each one as it finishes."""
+    results: list[Any] = [None] * len(items)
+
+    def keep(pair: tuple[int, Any]) -> None:
+        results[pair[0]] = pair[1]
+        if on_result is not None:
+            on_result(pair[1])
+
+    pool_map(partial(_indexed, fn), list(enumerate(items)), keep, workers, preload)
+    return results
 
 def import_ray() -> Any:
     """The ``ray`` module, or a one-line error naming the extra to install."""

@@ -59,10 +59,18 @@ def points_figure(info: dict[str, Any], kpi: str) -> go.Figure:
     labels = [_label(info, r) for r in rows]
     up, down = zip(*[_span(r) for r in rows], strict=True) if rows else ((), ())
     fig = go.Figure()
-    fig.add_scatter(x=labels, y=[r["target"] for r in rows], mode="markers", name="measured",
-                    marker={"symbol": "diamond", "size": 12, "color": PALETTE[1]})
     fig.add_scatter(
-        x=labels, y=[r["predicted"] for r in rows], mode="markers", name="twin (95 % CI)",
+        x=labels,
+        y=[r["target"] for r in rows],
+        mode="markers",
+        name="measured",
+        marker={"symbol": "diamond", "size": 12, "color": PALETTE[1]},
+    )
+    fig.add_scatter(
+        x=labels,
+        y=[r["predicted"] for r in rows],
+        mode="markers",
+        name="twin (95 % CI)",
         marker={"size": 10, "color": PALETTE[0]},
         error_y={"type": "data", "array": list(up), "arrayminus": list(down), "visible": True},
         customdata=[[r["residual"], r["policy"]] for r in rows],
@@ -70,8 +78,12 @@ def points_figure(info: dict[str, Any], kpi: str) -> go.Figure:
         "<br>policy %{customdata[1]}<extra></extra>",
     )
     fig.update_yaxes(title=kpi)
-    return style(fig, f"Measured vs twin: {kpi}", "each point at the fitted parameters; "
-                 "bars: 95 % CI over the replications", height=400)
+    return style(
+        fig,
+        f"Measured vs twin: {kpi}",
+        "each point at the fitted parameters; bars: 95 % CI over the replications",
+        height=400,
+    )
 
 
 def curve_figure(info: dict[str, Any], field: str, kpi: str) -> go.Figure:
@@ -81,41 +93,77 @@ def curve_figure(info: dict[str, Any], field: str, kpi: str) -> go.Figure:
     fig = go.Figure()
     lows = [r["ci_low"] if r["ci_low"] is not None else r["predicted"] for r in rows]
     highs = [r["ci_high"] if r["ci_high"] is not None else r["predicted"] for r in rows]
-    fig.add_scatter(x=xs + xs[::-1], y=highs + lows[::-1], fill="toself", mode="none",
-                    fillcolor=rgba(PALETTE[0], 0.15), name="95 % CI", hoverinfo="skip")
-    fig.add_scatter(x=xs, y=[r["predicted"] for r in rows], mode="lines+markers",
-                    name="fitted twin", line={"color": PALETTE[0]})
+    fig.add_scatter(
+        x=xs + xs[::-1],
+        y=highs + lows[::-1],
+        fill="toself",
+        mode="none",
+        fillcolor=rgba(PALETTE[0], 0.15),
+        name="95 % CI",
+        hoverinfo="skip",
+    )
+    fig.add_scatter(
+        x=xs,
+        y=[r["predicted"] for r in rows],
+        mode="lines+markers",
+        name="fitted twin",
+        line={"color": PALETTE[0]},
+    )
     meas = [r for r in info["points"] if r["kpi"] == kpi]
-    fig.add_scatter(x=[r[field] for r in meas], y=[r["target"] for r in meas], mode="markers",
-                    name="measured", marker={"symbol": "diamond", "size": 12, "color": PALETTE[1]})
+    fig.add_scatter(
+        x=[r[field] for r in meas],
+        y=[r["target"] for r in meas],
+        mode="markers",
+        name="measured",
+        marker={"symbol": "diamond", "size": 12, "color": PALETTE[1]},
+    )
     fig.update_xaxes(title=field)
     fig.update_yaxes(title=kpi)
     others = [v for v in info["varied"] if v != field]
     note = f"; {', '.join(others)} as at point 1" if others else ""
-    return style(fig, f"Fitted response: {kpi} against {field}",
-                 f"best policy at each value{note}", height=420)
+    return style(
+        fig,
+        f"Fitted response: {kpi} against {field}",
+        f"best policy at each value{note}",
+        height=420,
+    )
 
 
 def profile_figure(info: dict[str, Any]) -> go.Figure:
     """The objective along each parameter near the optimum, the others held at theirs."""
     params = info["params"]
-    fig = make_subplots(rows=1, cols=len(params), subplot_titles=[p["name"] for p in params],
-                        horizontal_spacing=0.08)
+    fig = make_subplots(
+        rows=1,
+        cols=len(params),
+        subplot_titles=[p["name"] for p in params],
+        horizontal_spacing=0.08,
+    )
     for j, p in enumerate(params, start=1):
         rows = sorted(
             (r for r in info["profiles"] if r["param"] == p["name"] and not r["param_2"]),
             key=lambda r: r["value"],
         )
-        fig.add_scatter(x=[r["value"] for r in rows], y=[r["objective"] for r in rows],
-                        mode="lines+markers", line={"color": PALETTE[j % len(PALETTE)]},
-                        showlegend=False, row=1, col=j)
+        fig.add_scatter(
+            x=[r["value"] for r in rows],
+            y=[r["objective"] for r in rows],
+            mode="lines+markers",
+            line={"color": PALETTE[j % len(PALETTE)]},
+            showlegend=False,
+            row=1,
+            col=j,
+        )
         fig.add_vline(x=p["value"], line_dash="dot", line_color="#5f6b7a", row=1, col=j)
-        fig.add_hline(y=info["objective"] + 1.0, line_dash="dash", line_color="#c0392b",
-                      row=1, col=j)
+        fig.add_hline(
+            y=info["objective"] + 1.0, line_dash="dash", line_color="#c0392b", row=1, col=j
+        )
     fig.update_yaxes(title="objective", col=1)
-    return style(fig, "How well each parameter is determined",
-                 "objective along each parameter, others at the fit; dotted: fitted value; "
-                 "dashed: best + 1", height=400, top=90)
+    return style(
+        fig,
+        "How well each parameter is determined",
+        "objective along each parameter, others at the fit; dotted: fitted value; dashed: best + 1",
+        height=400,
+        top=90,
+    )
 
 
 def pair_figure(info: dict[str, Any], a: str, b: str) -> go.Figure:
@@ -126,17 +174,34 @@ def pair_figure(info: dict[str, Any], a: str, b: str) -> go.Figure:
     z = [[math.nan] * len(xs) for _ in ys]
     for r in rows:
         z[ys.index(r["value_2"])][xs.index(r["value"])] = r["objective"]
-    fig = go.Figure(go.Contour(x=xs, y=ys, z=z, colorscale="Viridis_r",
-                               colorbar={"title": "objective"}, contours={"showlabels": True}))
+    fig = go.Figure(
+        go.Contour(
+            x=xs,
+            y=ys,
+            z=z,
+            colorscale="Viridis_r",
+            colorbar={"title": "objective"},
+            contours={"showlabels": True},
+        )
+    )
     pa = next(p for p in info["params"] if p["name"] == a)
     pb = next(p for p in info["params"] if p["name"] == b)
-    fig.add_scatter(x=[pa["value"]], y=[pb["value"]], mode="markers", name="fit",
-                    marker={"symbol": "x", "size": 12, "color": "#c0392b"})
+    fig.add_scatter(
+        x=[pa["value"]],
+        y=[pb["value"]],
+        mode="markers",
+        name="fit",
+        marker={"symbol": "x", "size": 12, "color": "#c0392b"},
+    )
     fig.update_xaxes(title=a)
     fig.update_yaxes(title=b)
-    return style(fig, f"Trade-off: {a} and {b}", "objective over both, the other "
-                 "parameters at the fit; a long diagonal valley: the data cannot fit both",
-                 height=440)
+    return style(
+        fig,
+        f"Trade-off: {a} and {b}",
+        "objective over both, the other "
+        "parameters at the fit; a long diagonal valley: the data cannot fit both",
+        height=440,
+    )
 
 
 def _answer(info: dict[str, Any]) -> str:
@@ -144,12 +209,16 @@ def _answer(info: dict[str, Any]) -> str:
     worst = max((abs(r["residual"]) for r in info["points"]), default=math.nan)
     fitted = "; ".join(f"{p['name']} = {p['value']:.4g}" for p in info["params"])
     if g:
-        first = (f"The fitted twin is within {max(g):.2f} points of every measured gripping "
-                 f"rate ({len(g)} points).")
+        first = (
+            f"The fitted twin is within {max(g):.2f} points of every measured gripping "
+            f"rate ({len(g)} points)."
+        )
     else:
         first = f"The fitted twin's largest residual is {worst:.3g} (in the KPI's units)."
-    return (f'<div class="answer"><p>{esc(first)}</p><p>Fitted: {esc(fitted)}. '
-            f"Objective {info['objective']:.4g} after {info['evaluations']} evaluations.</p></div>")
+    return (
+        f'<div class="answer"><p>{esc(first)}</p><p>Fitted: {esc(fitted)}. '
+        f"Objective {info['objective']:.4g} after {info['evaluations']} evaluations.</p></div>"
+    )
 
 
 def _determined(info: dict[str, Any]) -> str:
@@ -160,8 +229,10 @@ def _determined(info: dict[str, Any]) -> str:
             continue
         width = (hi - lo) / (p["high"] - p["low"])
         verdict = "well determined" if width < 0.2 else "poorly determined by these points"
-        items.append(f"<li><b>{esc(p['name'])}</b>: objective within +1 of the best for "
-                     f"{lo:.4g} to {hi:.4g} ({100 * width:.0f} % of its bounds): {verdict}.</li>")
+        items.append(
+            f"<li><b>{esc(p['name'])}</b>: objective within +1 of the best for "
+            f"{lo:.4g} to {hi:.4g} ({100 * width:.0f} % of its bounds): {verdict}.</li>"
+        )
     return f'<ul class="findings">{"".join(items)}</ul>' if items else ""
 
 
@@ -170,9 +241,18 @@ def _points_table(info: dict[str, Any]) -> str:
     rows = []
     for r in info["points"]:
         ci = "" if r["ci_low"] is None else f"[{r['ci_low']:.2f}, {r['ci_high']:.2f}]"
-        rows.append([str(r["point"]), *(esc(r[v]) for v in info["varied"]), esc(r["kpi"]),
-                     f"{r['target']:.4g}", f"{r['predicted']:.2f}", ci, f"{r['residual']:+.2f}",
-                     esc(r["policy"])])
+        rows.append(
+            [
+                str(r["point"]),
+                *(esc(r[v]) for v in info["varied"]),
+                esc(r["kpi"]),
+                f"{r['target']:.4g}",
+                f"{r['predicted']:.2f}",
+                ci,
+                f"{r['residual']:+.2f}",
+                esc(r["policy"]),
+            ]
+        )
     return table_html(head, rows)
 
 
@@ -183,13 +263,23 @@ def _facts(info: dict[str, Any]) -> str:
         ("scenario", esc(info["scenario"])),
         ("calibrated scenario file", f"<code>{esc(info['scenario_file'])}</code>"),
         ("measured points", f"<code>{esc(info['targets_file'])}</code>"),
-        ("prediction", esc(f"best of {', '.join(info['policies'])}, mean of "
-                           f"{info['replications']} common-random-number replications of "
-                           f"{info['duration']:g} s (warm-up {info['warmup']:g} s)")),
+        (
+            "prediction",
+            esc(
+                f"best of {', '.join(info['policies'])}, mean of "
+                f"{info['replications']} common-random-number replications of "
+                f"{info['duration']:g} s (warm-up {info['warmup']:g} s)"
+            ),
+        ),
         ("optimiser", esc(info["optimiser"])),
-        ("evaluations", esc(f"{info['evaluations']} by the optimiser; "
-                            f"{info['simulated_points']} points simulated, "
-                            f"{info['replayed_points']} replayed from the journal")),
+        (
+            "evaluations",
+            esc(
+                f"{info['evaluations']} by the optimiser; "
+                f"{info['simulated_points']} points simulated, "
+                f"{info['replayed_points']} replayed from the journal"
+            ),
+        ),
         ("wall time", esc(f"{info['wall_time']:.0f} s")),
     ]
     rows = "".join(f"<tr><th>{k}</th><td>{v}</td></tr>" for k, v in facts)
@@ -209,27 +299,49 @@ def build_calibration_page(info: dict[str, Any]) -> Page:
     cards = [
         ("largest |residual|", f"{max(g):.2f} pp" if g else "-", "gripping rate, over the points"),
         ("objective", f"{info['objective']:.3g}", "weighted sum of squared residuals"),
-        ("parameters", str(len(info["params"])), f"fitted to {len({r['point'] for r in info['points']})} points"),
+        (
+            "parameters",
+            str(len(info["params"])),
+            f"fitted to {len({r['point'] for r in info['points']})} points",
+        ),
         ("wall time", f"{info['wall_time']:.0f} s", f"{info['evaluations']} evaluations"),
     ]
     sections = [
-        Section("answer", "How close the twin comes", "At the fitted values, measured against "
-                "predicted at every point.", [_answer(info), *(points_figure(info, k) for k in kpis),
-                                              _points_table(info)]),
+        Section(
+            "answer",
+            "How close the twin comes",
+            "At the fitted values, measured against predicted at every point.",
+            [_answer(info), *(points_figure(info, k) for k in kpis), _points_table(info)],
+        ),
     ]
-    curves = [curve_figure(info, f, k) for f in info["varied"] for k in kpis
-              if any(r["field"] == f and r["kpi"] == k for r in info["curves"])]
+    curves = [
+        curve_figure(info, f, k)
+        for f in info["varied"]
+        for k in kpis
+        if any(r["field"] == f and r["kpi"] == k for r in info["curves"])
+    ]
     if curves:
-        sections.append(Section("response", "Fitted response", "The calibrated twin across the "
-                                "range of each field the points vary.", list(curves)))
+        sections.append(
+            Section(
+                "response",
+                "Fitted response",
+                "The calibrated twin across the range of each field the points vary.",
+                list(curves),
+            )
+        )
     determined: list[go.Figure | str] = [_determined(info)]
     if any(not r["param_2"] for r in info["profiles"]):
         determined.append(profile_figure(info))
     determined += [pair_figure(info, a, b) for a, b in _pairs(info)]
-    sections.append(Section("determined", "How well each parameter is determined",
-                            "A sharp minimum means the points pin the parameter down; a flat "
-                            "profile or a valley across two parameters means they do not.",
-                            determined))
+    sections.append(
+        Section(
+            "determined",
+            "How well each parameter is determined",
+            "A sharp minimum means the points pin the parameter down; a flat "
+            "profile or a valley across two parameters means they do not.",
+            determined,
+        )
+    )
     sections.append(Section("run", "What was run", "", [_facts(info)]))
     return Page(
         title=f"Calibration of {info['scenario']}",

@@ -50,6 +50,8 @@ section p.intro { margin:0 0 12px; color:var(--muted); max-width:900px; }
 .answer { border-left:4px solid var(--good); background:#f0f8f7; padding:12px 16px;
   border-radius:0 8px 8px 0; margin:8px 0 14px; font-size:16px; }
 .answer p { margin:4px 0; }
+.warn { border-left:4px solid var(--bad); background:#fbefed; padding:12px 16px;
+  border-radius:0 8px 8px 0; margin:8px 0 14px; }
 .answer p:first-child { font-weight:600; }
 ul.findings { margin:6px 0 4px; padding-left:20px; }
 ul.findings li { margin:5px 0; }

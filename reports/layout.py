@@ -10,7 +10,7 @@ from typing import Any
 
 import pandas as pd
 
-from reports import figures, record_figures, style
+from reports import figures, record_figures, style, welch
 from reports.html import Page, Section, esc, table_html
 from reports.load import Study
 from reports.text import (
@@ -95,9 +95,13 @@ def cards(study: Study) -> list[tuple[str, str, str]]:
             ),
         )
     points = len(study.best) if study.best is not None else 1
-    out.append(("Grid points", str(points), f"{len(study.varying)} parameter(s) varied"))
-    label = "Mixes" if study.mix is not None else "Policies"
-    out.append((label, str(len(study.policies)), shorten(", ".join(study.policies), 60)))
+    if study.varying:
+        out.append(("Grid points", str(points), f"{len(study.varying)} parameter(s) varied"))
+    if study.mix is not None:
+        method = study.mix.get("method", "search")
+        out.append(("Mixes", str(len(study.policies)), f"{method} search, ranked below"))
+    else:
+        out.append(("Policies", str(len(study.policies)), shorten(", ".join(study.policies), 60)))
     runs = len(study.results) if study.results is not None else int(s.get("n", pd.Series()).sum())
     reps = study.meta.get("replications")
     out.append(("Runs", f"{runs:,}", f"{reps} replications each" if reps else ""))
@@ -385,6 +389,28 @@ def robots_section(study: Study) -> Section | None:
     return Section("robots", "Robots", esc(intro), [fig])
 
 
+def welch_section(study: Study) -> Section | None:
+    """Welch's warm-up plot of the recommended configuration's replications."""
+    results = study.results
+    if results is None or welch.COLUMN not in results.columns:
+        return None
+    point, policy = showcase_point(study)
+    runs = at_point(results, point)
+    runs = runs[runs["policy"] == policy]
+    duration = float(study.meta.get("duration") or 0.0)
+    warmup = float(study.meta.get("warmup") or 0.0)
+    where = f"{policy}" + (f" at {point_label(point, list(point))}" if point else "")
+    got = welch.welch_items(runs, duration, warmup, where)
+    if got is None:
+        return None
+    fig, text, drifting = got
+    box = f'<div class="{"warn" if drifting else "answer"}"><p>{esc(text)}</p></div>'
+    intro = "Is the warm-up long enough? The gripping rate over time, averaged over the "
+    intro += "replications and smoothed (Welch's method): the curve should be flat after the "
+    intro += "dashed marker."
+    return Section("warmup", "Warm-up", esc(intro), [box, fig])
+
+
 def records_section(study: Study) -> Section | None:
     if study.parts is None or study.spans is None or study.run is None:
         return None
@@ -401,9 +427,7 @@ def records_section(study: Study) -> Section | None:
         items.append(record_figures.timeline_figure(study.parts, study.spans, t0, t1, n))
     if len(study.parts):
         seconds = max(min(ANIMATION_SECONDS, duration - t0), ANIMATION_STEP)
-        items.append(
-            record_figures.belt_figure(study.parts, scenario, t0, seconds, ANIMATION_STEP)
-        )
+        items.append(record_figures.belt_figure(study.parts, scenario, t0, seconds, ANIMATION_STEP))
     if not items:
         return None
     run = study.run
@@ -438,13 +462,14 @@ def build_page(study: Study) -> Page:
         policy_section(study),
         robots_section(study),
         records_section(study),
+        welch_section(study),
         Section(
             "kpis",
             "KPI summary",
             esc(
                 "Mean over replications with the 95 % confidence half-width; ★ marks the best "
                 "policy at each grid point. Efficiency: throughput over min(part flow, the "
-                "robots' measured cycle rate, i.e. the sum of 1 / mean cycle time), so a "
+                "robots' measured cycle rate, their picks per second of busy time), so a "
                 "saturated line reads about 100 %; utilisation: share of time moving, gripping "
                 "or placing. Gripping rate, efficiency and utilisation in %."
             ),

@@ -48,7 +48,10 @@ def fmt_value(value: Any) -> str:
 
 
 def param_value(path: str, value: Any, lower: bool = False) -> str:
-    """'Arm speed 4 m/s' ('arm speed 4 m/s' inside a sentence)."""
+    """'Arm speed 4 m/s' ('arm speed 4 m/s' inside a sentence); an MTBF of 0 is 'no
+    breakdowns'."""
+    if path == "robots.mtbf" and not value:
+        return "no breakdowns" if lower else "No breakdowns"
     label, _, unit = PARAMS.get(path, (param_label(path, unit=False), "", ""))
     label = label.lower() if lower and not label.isupper() else label
     return f"{label} {fmt_value(value)}{' ' + unit if unit else ''}"
@@ -59,6 +62,9 @@ def point_label(row: pd.Series | dict[str, Any], grid: list[str]) -> str:
     parts = []
     for path in grid:
         short = PARAMS.get(path, ("", path.rsplit(".", 1)[-1], ""))[1]
+        if path == "robots.mtbf" and not row[path]:
+            parts.append("no breakdowns")
+            continue
         parts.append(f"{short} {fmt_value(row[path])}")
     return " · ".join(parts) if parts else "baseline"
 
@@ -263,7 +269,8 @@ def key_findings(study: Study) -> list[str]:
             a, b = rows.iloc[0], rows.iloc[-1]
             out.append(
                 f"{param_label(path, unit=False)} from {fmt_value(a[path])} to "
-                f"{fmt_value(b[path])}{' ' + PARAMS.get(path, ('', '', ''))[2]}: best gripping "
+                f"{fmt_value(b[path])}{(' ' + PARAMS.get(path, ('', '', ''))[2]).rstrip()}: best "
+                "gripping "
                 f"rate {fmt_pct(a['gripping_rate_mean'])} → {fmt_pct(b['gripping_rate_mean'])}"
                 + (f" ({point_text(fixed, list(fixed))})." if fixed else ".")
             )
@@ -317,10 +324,14 @@ def sweep_headline(study: Study) -> str:
     if not grid:
         return f"{leader} is the best policy: {g_at({})}" + _lead_margin(study, {}, leader) + "."
     ref = reference_point(study)
+    scenario = study.meta.get("scenario") or {}
+    own = all(scenario_value(scenario, p) == v for p, v in ref.items())
+    where = "the base line" if own else "the middle of the grid"
     hard = best.loc[best["gripping_rate_mean"].idxmin()]
     hard_point = {p: hard[p] for p in grid}
     out = f"{leader} is the best policy {share}".rstrip()
-    out += f": at the base line ({point_text(ref, grid)}) it grips {g_at(ref)}"
+    out += f": at {where} ({point_text(ref, grid)}) it grips {g_at(ref)}"
+    out += _lead_margin(study, ref, leader)
     if hard_point != ref:
         out += f"; at the hardest point ({point_text(hard_point, grid)}) {g_at(hard_point)}"
         if str(hard["policy"]) != leader:
@@ -364,7 +375,7 @@ def size_headline(sizing: dict[str, Any]) -> str:
             f"{best}{rot}."
         )
     row = next((r for r in rows if r["value"] == answer), None)
-    g = f" (G = {_with_ci(row['mean'], row['ci_low'], row['ci_high'])})" if row else ""
+    g = f": G = {_with_ci(row['mean'], row['ci_low'], row['ci_high'])}" if row else ""
     return (
         f"{fmt_value(answer)} robots reach G ≥ {target:g} % with {conf * 100:g} % confidence"
         f"{g}{rot}."

@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     from twin.records import Recorder
 
 FREE = -1
+SWEEP = 1.0  # s between two sweeps of the belt's end by :meth:`Belt.conveying`
 
 
 class Belt:
@@ -94,20 +95,23 @@ class Belt:
     def conveying(
         self, env: simpy.Environment, recorder: Recorder
     ) -> Generator[simpy.Event, Any, None]:
-        """The belt's process: record each part that passes the end unpicked as missed.
+        """The belt's process: record the parts that pass the end unpicked, as missed.
 
-        It takes the parts in feeding order and sleeps until the exit of each one not yet
-        gripped, so it wakes about once per missed part, not once per part. A part still
-        claimed at its exit is gripped there (to rounding): only free parts are missed.
+        It sweeps the end of the belt every :data:`SWEEP` seconds and records each part that
+        passed it unpicked since the last sweep, with its exact exit time (so the records do
+        not depend on the sweep period; waking once per part would cost more than the rest
+        of the model). A part still claimed at its exit is gripped there (to rounding).
         """
-        left_at, holder = self.left_at, self.holder
-        for i in range(len(self.fed)):
-            if left_at[i] > env.now:  # not gripped yet
-                at = self.exit_at(i)
-                if at > env.now:
-                    yield env.timeout(at - env.now)
+        fed, holder = self.fed, self.holder
+        lag = self.end / self.speed  # fed + lag is geometry.exit_time, inlined
+        i, n = 0, len(fed)
+        while i < n:
+            yield env.timeout(SWEEP)
+            now = env.now
+            while i < n and fed[i] + lag <= now:
                 if holder[i] == FREE:
-                    recorder.missed(i, at)
+                    recorder.missed(i, fed[i] + lag)
+                i += 1
 
     # -- what robots and cameras see ----------------------------------------------------------
     def span(self, now: float, x_lo: float, x_hi: float) -> range:

@@ -82,7 +82,7 @@ class Feeder:
             j = i + 1
             while j < n and fed[j] <= now:  # parts arriving together
                 j += 1
-            belt.put(j)
+            belt.arrived = j  # Belt.put, inlined: this loop runs once per part
             i = j
 
     def _gaps(self, duration: float) -> np.ndarray:
@@ -136,14 +136,21 @@ class _Arrival(simpy.Event):
         now = env.now
         delay = at - now
         # now + (at - now) can miss ``at`` by a unit in the last place: step onto it
-        while now + delay < at:
-            delay = math.nextafter(delay, math.inf)
-        while now + delay > at:
-            shorter = math.nextafter(delay, 0.0)
-            if now + shorter < at:
-                break
-            delay = shorter
+        if now + delay != at:
+            delay = _onto(now, at, delay)
         env.schedule(self, URGENT, delay)
+
+
+def _onto(now: float, at: float, delay: float) -> float:
+    """The delay closest to ``delay`` with now + delay == at (or the least above it)."""
+    while now + delay < at:
+        delay = math.nextafter(delay, math.inf)
+    while now + delay > at:
+        shorter = math.nextafter(delay, 0.0)
+        if now + shorter < at:
+            break
+        delay = shorter
+    return delay
 
 
 def resampled(scenario: Scenario, seed: int, other: int, at: float, duration: float) -> PartStream:

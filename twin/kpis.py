@@ -7,19 +7,24 @@ robots' state spans clipped to the same window.
 Robots are numbered from 1 in the record tables, as everywhere a person reads them.
 
 Efficiency is throughput over ``max_throughput`` = min(part flow presented, the robots'
-measured cycle rate), where a robot's cycle rate is 1 / its mean measured cycle time (decision
-to end of release, over its picks in the window): a line whose robots are never idle reads
-about 100 %. A robot without a pick in the window counts at its ``nominal_capacity``, 1 / its
-shortest possible cycle: pick + place + a round trip between its bin and the nearest point of
-the belt (the upper edge below the bin) at arm speed.
+measured cycle rate), where a robot's cycle rate (``capacity``) is its picks in the window per
+second of its busy time there (moving, gripping, placing): what it picks while it works. So
+efficiency never passes 100 % and a line whose robots are never idle reads about 100 %. A
+robot that never worked in the window counts at its ``nominal_capacity``, 1 / its shortest
+possible cycle: pick + place + a round trip between its bin and the nearest point of the
+belt (the upper edge below the bin) at arm speed.
 
 Parts a robot did not pick are split into ``passed_on`` (left its workspace unpicked and were
 picked by a robot downstream) and ``lost`` (left its workspace unpicked and reached the return
 conveyor: the line's ``parts_missed``).
+
+``welch_gripping_rate`` is G over time for Welch's warm-up plot: the feeding period, warm-up
+included, cut into ``WELCH_BINS`` bins by time fed (NaN for a bin no part was fed in).
 """
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -31,6 +36,7 @@ from twin.decision import RobotSpec
 from twin.geometry import move_time
 
 STATES = ("busy", "noop", "wait", "blocked", "down")
+WELCH_BINS = 60  # the feeding period [0, duration) in this many bins, warm-up included
 
 
 def clipped(
@@ -73,6 +79,19 @@ def state_times(
     return out
 
 
+def welch_series(parts: pd.DataFrame, duration: float, bins: int = WELCH_BINS) -> list[float]:
+    """G (%) of the parts fed in each of ``bins`` equal bins of [0, duration)."""
+    fed = parts["fed_at"].to_numpy(dtype=float)
+    inside = (fed >= 0) & (fed < duration)
+    k = np.minimum((fed[inside] / duration * bins).astype(np.int64), bins - 1)
+    picked = (parts["outcome"] == "picked").to_numpy()[inside]
+    n = np.bincount(k, minlength=bins)
+    hit = np.bincount(k, weights=picked.astype(float), minlength=bins)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = np.where(n > 0, 100.0 * hit / np.maximum(n, 1), np.nan)
+    return [round(float(x), 3) for x in g]
+
+
 def compute_kpis(
     parts: pd.DataFrame,
     spans: pd.DataFrame,
@@ -93,13 +112,9 @@ def compute_kpis(
     states = state_times(parts, spans, n, w0, w1)
     nominal = np.array([robot_capacity(s) for s in specs])
     cycle_all = (win["placed_at"] - win["decided_at"]).to_numpy()
-    mean_cycle = np.array(
-        [
-            float(c.mean()) if len(c := cycle_all[is_picked & (robot_of == i)]) else math.nan
-            for i in range(n)
-        ]
-    )
-    caps = np.where(mean_cycle > 0, 1.0 / np.where(mean_cycle > 0, mean_cycle, 1.0), nominal)
+    busy = states[:, 0]
+    worked = (busy > 0) & (picks > 0)
+    caps = np.where(worked, picks / np.where(worked, busy, 1.0), nominal)
     flow = presented / span
     max_tp = min(flow, float(caps.sum()))
     tp = picked / span
@@ -146,6 +161,7 @@ def compute_kpis(
         "cycle_time_max": float(cycles.max()) if len(cycles) else math.nan,
         "decisions": {str(k): int(v) for k, v in sorted(rules.items())},
         "window": [w0, w1],
+        "welch_gripping_rate": welch_series(parts, w1),
         "robots": robots,
     }
 
@@ -153,6 +169,8 @@ def compute_kpis(
 def flat_kpis(kpis: dict[str, Any]) -> dict[str, Any]:
     """One flat row: scalar KPIs, ``r{i}_{name}`` per robot, ``rule_{name}`` per rule."""
     row = {k: v for k, v in kpis.items() if not isinstance(v, dict | list)}
+    if "welch_gripping_rate" in kpis:  # one text cell: the series as JSON (NaN for empty bins)
+        row["welch_gripping_rate"] = json.dumps(kpis["welch_gripping_rate"])
     for r in kpis["robots"]:
         for k, v in r.items():
             if k not in ("robot", "workspace"):

@@ -106,6 +106,7 @@ class Robot:
         px, py = self.tool
         a, b, quad = self.a, self.b, self._quad
         acc = self.spec.acceleration
+        closed_form = intercept_now  # a local name: this loop is the twin's hot path
         vnow = v * now
         parts: list[int] = []
         xs: list[float] = []
@@ -121,7 +122,7 @@ class Robot:
             if acc > 0.0:
                 t = intercept_time(dx, dy, v, self.spec.arm_speed, acc)
             else:
-                t = intercept_now(dx, dy, v, quad)
+                t = closed_form(dx, dy, v, quad)
             if a <= x + v * t <= b:
                 parts.append(i)
                 xs.append(x)

@@ -18,8 +18,10 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     PrivateAttr,
@@ -28,9 +30,20 @@ from pydantic import (
     model_validator,
 )
 
-# Strict numbers: an int is a valid float, but a bool or a string is neither.
+
+def _integral(value: Any) -> Any:
+    """numpy integers and whole floats (``4.0``) as int; anything else as it is."""
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
+# Strict numbers: an int is a valid float and 4.0 a valid int, but a bool or a string is
+# neither (no `count = true`, no `rate = "10"`).
 Real = Annotated[float, Strict()]
-Whole = Annotated[int, Strict()]
+INTEGRAL = BeforeValidator(_integral)  # last in an Annotated int: runs before the checks
 Text = Annotated[str, Strict()]
 
 YEAR = 31_536_000.0  # s: the longest run or warm-up a scenario may ask for
@@ -55,9 +68,10 @@ class BeltConfig(Frozen):
     length: Real = num(2.4, "m", "Belt length L in m, from the feeder (x=0).", gt=0, le=1000)
     width: Real = num(0.4, "m", "Belt width W in m (y from 0 to W).", gt=0, le=10)
     speed: Real = num(0.8, "m/s", "Belt speed v_b in m/s.", gt=0, le=10)
-    grid: tuple[Annotated[Whole, Field(ge=1, le=4096)], Annotated[Whole, Field(ge=1, le=1024)]] = (
-        Field((64, 8), description="Observation grid: cells along the belt, cells across.")
-    )
+    grid: tuple[
+        Annotated[int, Strict(), Field(ge=1, le=4096), INTEGRAL],
+        Annotated[int, Strict(), Field(ge=1, le=1024), INTEGRAL],
+    ] = Field((64, 8), description="Observation grid: cells along the belt, cells across.")
 
 
 class FeederConfig(Frozen):
@@ -119,7 +133,9 @@ Mttr = Annotated[Real, Field(ge=0, le=1e7)]
 class RobotOverride(Frozen):
     """Per-robot overrides of the shared robot parameters; unset fields keep the default."""
 
-    robot: Annotated[Whole, Field(ge=1, le=64, description="Robot number, 1 = most upstream.")]
+    robot: Annotated[int, Strict(), Field(ge=1, le=64), INTEGRAL] = Field(
+        description="Robot number, 1 = most upstream."
+    )
     arm_speed: ArmSpeed | None = num(None, "m/s", "Tool speed v_r of this robot in m/s.")
     pick_time: PickTime | None = num(None, "s", "Grip time of this robot in s.")
     place_time: PickTime | None = num(None, "s", "Release time of this robot in s.")
@@ -132,7 +148,9 @@ class RobotOverride(Frozen):
 class RobotsConfig(Frozen):
     """The robots, identical by default, upstream to downstream."""
 
-    count: Annotated[Whole, Field(ge=1, le=64)] = Field(4, description="Number of robots N.")
+    count: Annotated[int, Strict(), Field(ge=1, le=64), INTEGRAL] = Field(
+        4, description="Number of robots N."
+    )
     workspaces: tuple[tuple[Position, Position], ...] | None = num(
         None,
         "m",
@@ -187,21 +205,20 @@ class RobotsConfig(Frozen):
         return self
 
     def layout(self) -> list[tuple[float, float]]:
-        """Workspace bounds [a_i, b_i] in m, upstream first."""
-        if self.workspaces is not None:
-            return [(float(a), float(b)) for a, b in self.workspaces]
-        a = self.first_workspace_start
-        out = []
-        for _ in range(self.count):
-            out.append((a, a + self.workspace_length))
-            a += self.workspace_length + self.workspace_gap
-        return out
+        """Workspace bounds [a_i, b_i] in m, upstream first (:func:`twin.geometry.workspaces`)."""
+        return workspaces(
+            self.count,
+            self.first_workspace_start,
+            self.workspace_length,
+            self.workspace_gap,
+            self.workspaces,
+        )
 
 
 class BinsConfig(Frozen):
     """Packaging boxes, one per robot."""
 
-    capacity: Annotated[Whole, Field(ge=0, le=1_000_000)] = num(
+    capacity: Annotated[int, Strict(), Field(ge=0, le=1_000_000), INTEGRAL] = num(
         0, "parts", "Parts per box before a box change; 0 = unlimited."
     )
     change_time: Real = num(
@@ -241,16 +258,21 @@ class SweepConfig(Frozen):
         description="Policies (names or per-robot mixes) to compare; default the scenario's. "
         "Each at most once (names are case-insensitive).",
     )
-    replications: Annotated[Whole, Field(ge=1, le=10_000)] | Literal["auto"] = Field(
-        5,
-        description="Replications per point and policy (2 or more for a CI), or 'auto': add "
-        "replications in rounds until every point's CI half-width of G is at most half_width.",
+    replications: Annotated[int, Strict(), Field(ge=1, le=10_000), INTEGRAL] | Literal["auto"] = (
+        Field(
+            5,
+            description="Replications per point and policy (2 or more for a CI), or 'auto': add "
+            "replications in rounds until every point's CI half-width of G is at most half_width.",
+        )
     )
     half_width: Real | None = num(
-        None, "%", "With replications = 'auto': the target CI half-width of G, in points.",
-        gt=0, le=100,
+        None,
+        "%",
+        "With replications = 'auto': the target CI half-width of G, in points.",
+        gt=0,
+        le=100,
     )
-    max_replications: Annotated[Whole, Field(ge=2, le=10_000)] | None = Field(
+    max_replications: Annotated[int, Strict(), Field(ge=2, le=10_000), INTEGRAL] | None = Field(
         None, description="With replications = 'auto': the most replications (default 30)."
     )
     duration: Real | None = num(None, "s", "Overrides the run duration, s.", gt=0, le=YEAR)
@@ -310,7 +332,7 @@ class Scenario(Frozen):
         600.0, "s", "Feeding time in s (the run then drains); at most a year.", gt=0, le=YEAR
     )
     warmup: Real = num(60.0, "s", "Parts fed before this time are not counted.", ge=0, le=YEAR)
-    seed: Annotated[Whole, Field(ge=0, le=SEED_MAX)] = Field(
+    seed: Annotated[int, Strict(), Field(ge=0, le=SEED_MAX), INTEGRAL] = Field(
         1, description="Master seed of the run."
     )
     sweep: SweepConfig | None = Field(None, description="Optional study definition.")

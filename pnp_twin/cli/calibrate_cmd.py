@@ -24,7 +24,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from pnp_twin.cli.app import ScenarioArg, SetOpt, app
-from pnp_twin.studies.calibrate import Problem, calibrate
+from pnp_twin.studies.calibrate import Problem, calibrate, check_problem
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.calibrate_fields import check_distinct, parse_fit
 from pnp_twin.studies.calibrate_output import write_outputs
@@ -52,6 +52,7 @@ def _problem(
     replications: int,
     max_evals: int,
     profile: int,
+    pairs: int,
 ) -> tuple[Problem, dict[str, Any]]:
     overrides = parse_sets(sets or [])
     sc = load_scenario(scenario, overrides)
@@ -61,7 +62,8 @@ def _problem(
     t = read_targets(targets)
     check_distinct(params, list(t.varied))
     policies = tuple(policy) if policy else tuple(RULES)
-    problem = Problem(sc, t, tuple(params), policies, replications, max_evals, profile)
+    problem = Problem(sc, t, tuple(params), policies, replications, max_evals, profile, pairs)
+    check_problem(problem)  # before the progress bar: a mistake is one line on its own
     return problem, overrides
 
 
@@ -90,8 +92,13 @@ def _fitted_table(info: dict[str, Any]) -> Table:
     for q in info["params"]:
         lo, hi = q["near_optimal"]
         span = "" if lo is None or math.isnan(lo) else f"{lo:.4g} .. {hi:.4g}"
-        t.add_row(q["name"], f"{q['low']:g} .. {q['high']:g}", f"{q['start']:.4g}",
-                  f"{q['value']:.4g}", span)
+        t.add_row(
+            q["name"],
+            f"{q['low']:g} .. {q['high']:g}",
+            f"{q['start']:.4g}",
+            f"{q['value']:.4g}",
+            span,
+        )
     return t
 
 
@@ -109,40 +116,67 @@ def calibrate_cmd(
     scenario: ScenarioArg,
     targets: Annotated[
         Path,
-        typer.Option("--targets", "-t", help="CSV of measured points (fields, KPIs, weight).",
-                     show_default=False),
+        typer.Option(
+            "--targets",
+            "-t",
+            help="CSV of measured points (fields, KPIs, weight).",
+            show_default=False,
+        ),
     ],
     out: Annotated[
-        Path, typer.Option("--out", "-o", help="Output folder (rerun to resume).",
-                           show_default=False)
+        Path,
+        typer.Option("--out", "-o", help="Output folder (rerun to resume).", show_default=False),
     ],
     fit: Annotated[
         list[str] | None,
-        typer.Option("--fit", metavar="PATH=LO:HI",
-                     help="A numeric field to fit with its bounds, e.g. robots.bin_offset.1=0.2:0.8"
-                     "; PATH,PATH=LO:HI fits fields sharing one value (repeatable)."),
+        typer.Option(
+            "--fit",
+            metavar="PATH=LO:HI",
+            help="A numeric field to fit with its bounds, e.g. robots.bin_offset.1=0.2:0.8"
+            "; PATH,PATH=LO:HI fits fields sharing one value (repeatable).",
+        ),
     ] = None,
     policy: Annotated[
         list[str] | None,
-        typer.Option("--policy", "-p", help="Policy (repeatable); the prediction is the best of "
-                     "them at each point. Default: every rule."),
+        typer.Option(
+            "--policy",
+            "-p",
+            help="Policy (repeatable); the prediction is the best of "
+            "them at each point. Default: every rule.",
+        ),
     ] = None,
-    replications: Annotated[int, typer.Option("--replications", "-r", min=1,
-                                              help="Common-random-number replications.")] = 5,
-    max_evals: Annotated[int, typer.Option("--max-evals", min=1,
-                                           help="Optimiser evaluations at most.")] = 60,
-    profile: Annotated[int, typer.Option("--profile", min=0,
-                                         help="Profile points per parameter (0: none).")] = 7,
-    workers: Annotated[int | None, typer.Option("--workers", "-w",
-                                                help="Parallel runs. Default: CPU count.")] = None,
+    replications: Annotated[
+        int, typer.Option("--replications", "-r", min=1, help="Common-random-number replications.")
+    ] = 5,
+    max_evals: Annotated[
+        int, typer.Option("--max-evals", min=1, help="Optimiser evaluations at most.")
+    ] = 60,
+    profile: Annotated[
+        int, typer.Option("--profile", min=0, help="Profile points per parameter (0: none).")
+    ] = 7,
+    pairs: Annotated[
+        int,
+        typer.Option(
+            "--pairs",
+            min=0,
+            help="Grid points per side of each pair of parameters' profile (0: none).",
+        ),
+    ] = 4,
+    workers: Annotated[
+        int | None, typer.Option("--workers", "-w", help="Parallel runs. Default: CPU count.")
+    ] = None,
     sets: SetOpt = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    fresh: Annotated[bool, typer.Option("--fresh", help="Discard the journal, simulate anew.")] = False,
-    no_report: Annotated[bool, typer.Option("--no-report", help="Do not write report.html.")] = False,
+    fresh: Annotated[
+        bool, typer.Option("--fresh", help="Discard the journal, simulate anew.")
+    ] = False,
+    no_report: Annotated[
+        bool, typer.Option("--no-report", help="Do not write report.html.")
+    ] = False,
 ) -> None:
     """Fit scenario fields so the twin reproduces measured points (a twin of your own line)."""
     problem, overrides = _problem(
-        scenario, targets, fit or [], sets, policy, replications, max_evals, profile
+        scenario, targets, fit or [], sets, policy, replications, max_evals, profile, pairs
     )
     _check_out(out, fresh)
     w = workers if workers is not None else (os.cpu_count() or 1)
@@ -175,6 +209,14 @@ def calibrate_cmd(
         console.width = max(console.width, 120)
     console.print(_fitted_table(info))
     console.print(_points_table(info))
-    console.print(f"scenario file: {info['scenario_file']}  ({info['evaluations']} evaluations, "
-                  f"{info['simulated_points']} points simulated, {info['replayed_points']} "
-                  f"replayed, {info['wall_time']:.0f} s)")
+    if info["lower_found"]:
+        low = info["lower_found"]
+        err.print(
+            f"note: the profiles found a lower objective ({low['objective']:.4g} at "
+            f"{low['x']}); rerun with more --max-evals or start there (--set)"
+        )
+    console.print(
+        f"scenario file: {info['scenario_file']}  ({info['evaluations']} evaluations, "
+        f"{info['simulated_points']} points simulated, {info['replayed_points']} "
+        f"replayed, {info['wall_time']:.0f} s)"
+    )

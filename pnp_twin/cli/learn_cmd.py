@@ -1,35 +1,35 @@
 """The ``train`` and ``evaluate`` commands of ``pnp-twin``: the learned HDQN policy.
 
 ``train`` runs :func:`pnp_twin.learning.train.train` (one run, or several training seeds in
-parallel worker processes) with a progress bar; ``evaluate`` compares a trained policy with
-every rule and the best rule mix on held-out seeds and prints a table of paired differences
-(with ``--out DIR``, also ``evaluation.csv`` and ``rules.csv`` for the training report).
-torch is imported only when a command runs, so the rest of the CLI works without the
-``learn`` extra.
+parallel worker processes) with a progress display; every :class:`TrainArgs` field is an
+option (built from the dataclass, its field docs are the help). ``evaluate`` compares a
+trained policy (``hdqn:DIR`` or ``sb3:MODEL.zip``) with every rule and the best rule mix on
+held-out seeds and prints a table of paired differences (with ``--out DIR``, also
+``evaluation.csv`` and ``rules.csv`` for the training report). torch is imported only when
+a command runs, so the rest of the CLI works without the ``learn`` extra.
 """
 
 from __future__ import annotations
 
+import inspect
 import math
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import replace
+from dataclasses import MISSING, fields, replace
 from enum import StrEnum
-from multiprocessing import get_context
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Annotated, Any
 
 import typer
 from rich import box
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from pnp_twin.cli.app import ScenarioArg, SetOpt, app, fail
+from pnp_twin.cli.app import INTERRUPTED, ScenarioArg, SetOpt, app, fail
 from pnp_twin.cli.console import stdout_console
-from pnp_twin.parallel import BACKENDS, ray_map
+from pnp_twin.cli.train_progress import TrainProgress
+from pnp_twin.learning.train_args import TrainArgs, field_help
+from pnp_twin.parallel import BACKENDS, pool_map_ordered, ray_map
 from twin.loader import load_scenario, parse_sets
 
-if TYPE_CHECKING:
-    from pnp_twin.learning.train import TrainArgs
+TD_RULES = "FIFO,LIFO,SIRO,SD,LD,SPT"
 
 
 class Mode(StrEnum):
@@ -57,228 +57,298 @@ def _train_one(args: TrainArgs) -> str:
     return str(train(args))
 
 
-def _progress_columns() -> list[Any]:
-    return [
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TextColumn("{task.fields[info]}"),
-    ]
+# -- the options of `train`: hand-written ones, then one per TrainArgs field ----------------------
+_EXTRA: list[tuple[str, Any, Any]] = [
+    ("scenario", ScenarioArg, MISSING),
+    (
+        "out",
+        Annotated[Path, typer.Option("--out", help="Output folder (one sub-folder per run).")],
+        MISSING,
+    ),
+    ("mode", Annotated[Mode, typer.Option("--mode", help="single | sync | async.")], Mode.async_),
+    (
+        "network",
+        Annotated[
+            str | None,
+            typer.Option(
+                "--network", help="compact (td default) | paper | pooled (rollout default)."
+            ),
+        ],
+        None,
+    ),
+    (
+        "rules",
+        Annotated[
+            str | None,
+            typer.Option(
+                "--rules",
+                help=f"Comma-separated rules the agent chooses among [td: {TD_RULES}; "
+                "rollout: the same without SIRO].",
+            ),
+        ],
+        None,
+    ),
+    (
+        "reward_weights",
+        Annotated[
+            str,
+            typer.Option(
+                "--reward-weights", help="Weights of eq. 1 and eq. 2, 'EXTRINSIC,INTRINSIC'."
+            ),
+        ],
+        "1,1",
+    ),
+    (
+        "resume",
+        Annotated[
+            bool, typer.Option("--resume", help="Continue exactly from the last checkpoint.")
+        ],
+        False,
+    ),
+    (
+        "seeds",
+        Annotated[int, typer.Option("--seeds", min=1, help="Training seeds: seed..seed+K-1.")],
+        1,
+    ),
+    (
+        "workers",
+        Annotated[
+            int,
+            typer.Option(
+                "--workers",
+                min=1,
+                help="Parallel runs for --seeds (labelling processes for rollout).",
+            ),
+        ],
+        1,
+    ),
+    (
+        "backend",
+        Annotated[
+            str, typer.Option("--backend", help="Where --seeds runs go: local processes or ray.")
+        ],
+        "local",
+    ),
+    (
+        "address",
+        Annotated[
+            str | None,
+            typer.Option(
+                "--address", help="Ray cluster address (default RAY_ADDRESS, else local)."
+            ),
+        ],
+        None,
+    ),
+    (
+        "targets",
+        Annotated[
+            str,
+            typer.Option(
+                "--targets",
+                help="td (DQN on the reward) | rollout (fit to team picks over sampled futures).",
+            ),
+        ],
+        "td",
+    ),
+    (
+        "episodes",
+        Annotated[
+            int, typer.Option("--episodes", min=1, help="Rollout targets: labelled episodes.")
+        ],
+        600,
+    ),
+    (
+        "futures",
+        Annotated[
+            int, typer.Option("--futures", min=1, help="Rollout targets: futures per decision.")
+        ],
+        12,
+    ),
+    ("sets", SetOpt, None),
+]
+_HANDWRITTEN = {
+    "scenario",
+    "out",
+    "mode",
+    "network",
+    "rules",
+    "reward_weights",
+    "resume",
+    "overrides",
+}
+_SCALED = {"learning_starts", "eval_every", "log_every", "checkpoint_every"}
 
 
-@app.command("train")
-def train_cmd(
-    scenario: ScenarioArg,
-    out: Annotated[Path, typer.Option("--out", help="Output folder (one sub-folder per run).")],
-    mode: Annotated[Mode, typer.Option("--mode", help="single | sync | async.")] = Mode.async_,
-    steps: Annotated[
-        int, typer.Option("--steps", min=1, help="Transitions to train for.")
-    ] = 200_000,
-    seed: Annotated[
-        int, typer.Option("--seed", min=0, help="Training seed (first of --seeds).")
-    ] = 1,
-    device: Annotated[str, typer.Option("--device", help="auto | cpu | cuda.")] = "auto",
-    network: Annotated[
-        str | None,
-        typer.Option("--network", help="compact (td default) | paper | pooled (rollout default)."),
-    ] = None,
-    rules: Annotated[
-        str, typer.Option("--rules", help="Comma-separated rules the agent chooses among.")
-    ] = "FIFO,LIFO,SIRO,SD,LD,SPT",
-    resume: Annotated[
-        bool, typer.Option("--resume", help="Continue from the last checkpoint.")
-    ] = False,
-    seeds: Annotated[
-        int, typer.Option("--seeds", min=1, help="Training seeds: seed..seed+K-1.")
-    ] = 1,
-    workers: Annotated[
-        int, typer.Option("--workers", min=1, help="Parallel runs for --seeds.")
-    ] = 1,
-    backend: Annotated[
-        str, typer.Option("--backend", help="Where --seeds runs go: local processes or ray.")
-    ] = "local",
-    address: Annotated[
-        str | None,
-        typer.Option("--address", help="Ray cluster address (default RAY_ADDRESS, else local)."),
-    ] = None,
-    eval_every: Annotated[
-        int, typer.Option("--eval-every", min=1, help="Steps between evaluations.")
-    ] = 20_000,
-    eval_seeds: Annotated[
-        int, typer.Option("--eval-seeds", min=2, help="Validation seeds per evaluation.")
-    ] = 4,
-    view: Annotated[
-        str,
-        typer.Option("--view", help="Multi-agent input: window (own workspace) | belt (whole)."),
-    ] = "window",
-    reward: Annotated[
-        str,
-        typer.Option("--reward", help="Multi-agent reward: own (eq. 1 + 2) | downstream | team."),
-    ] = "own",
-    targets: Annotated[
-        str,
-        typer.Option(
-            "--targets",
-            help="td (DQN on the reward) | rollout (fit to team picks over sampled futures).",
-        ),
-    ] = "td",
-    episodes: Annotated[
-        int, typer.Option("--episodes", min=1, help="Rollout targets: labelled episodes.")
-    ] = 600,
-    futures: Annotated[
-        int, typer.Option("--futures", min=1, help="Rollout targets: futures per decision.")
-    ] = 12,
-    sets: SetOpt = None,
-) -> None:
+def _field_options() -> list[tuple[str, Any, Any]]:
+    """One option per remaining TrainArgs field, typed by its default, its doc as help."""
+    helps = field_help()
+    out = []
+    for f in fields(TrainArgs):
+        if f.name in _HANDWRITTEN:
+            continue
+        flag = "--" + f.name.replace("_", "-")
+        default = f.default
+        if isinstance(default, bool):
+            decl = Annotated[
+                bool, typer.Option(f"{flag}/--no-{f.name.replace('_', '-')}", help=helps[f.name])
+            ]
+        elif f.name in _SCALED:
+            decl = Annotated[
+                int | None, typer.Option(flag, min=0, help=helps[f.name], show_default=False)
+            ]
+        else:
+            kind = type(default)
+            extra = {"min": 1} if kind is int and f.name != "seed" else {}
+            if f.name == "seed":
+                extra = {"min": 0}
+            decl = Annotated[kind, typer.Option(flag, help=helps[f.name], **extra)]
+        out.append((f.name, decl, default))
+    return out
+
+
+_OPTIONS = _EXTRA[:2] + _field_options() + _EXTRA[2:]
+
+
+def train_cmd(**kw: Any) -> None:
     """Train the HDQN meta-controller; writes OUT/<scenario>__<mode>__<seed>/."""
     _need_torch()
     from policies.hdqn.network import PRESETS
 
+    targets = kw["targets"]
     if targets not in ("td", "rollout"):
         fail(f"--targets: '{targets}' is not allowed; allowed td, rollout")
-    network = network or ("pooled" if targets == "rollout" else "compact")
-    if network not in PRESETS:
-        fail(f"--network: '{network}' is not a preset; allowed {', '.join(PRESETS)}")
+    kw["network"] = kw["network"] or ("pooled" if targets == "rollout" else "compact")
+    if kw["network"] not in PRESETS:
+        fail(f"--network: '{kw['network']}' is not a preset; allowed {', '.join(PRESETS)}")
     if targets == "rollout":
-        _train_rollout(
-            scenario,
-            out,
-            mode,
-            seed,
-            seeds,
-            workers,
-            episodes,
-            futures,
-            rules,
-            network,
-            device,
-            eval_seeds,
-            resume,
-            sets,
-        )
+        _train_rollout(kw)
         return
-    from pnp_twin.learning.envs.driver import check_rules
-    from pnp_twin.learning.train import REWARDS, VIEWS, TrainArgs
-
-    if backend not in BACKENDS:
-        fail(f"--backend: '{backend}' is not allowed; allowed {', '.join(BACKENDS)}")
-    if view not in VIEWS:
-        fail(f"--view: '{view}' is not a view; allowed {', '.join(VIEWS)}")
-    if reward not in REWARDS:
-        fail(f"--reward: '{reward}' is not a reward; allowed {', '.join(REWARDS)}")
-    load_scenario(scenario, parse_sets(sets or []))  # fail early on a bad scenario
-    base = TrainArgs(
-        scenario=scenario,
-        mode=mode.value,
-        out=str(out),
-        seed=seed,
-        steps=steps,
-        device=device,
-        network=network,
-        rules=check_rules([r.strip() for r in rules.split(",") if r.strip()]),
-        resume=resume,
-        eval_every=eval_every,
-        eval_seeds=eval_seeds,
-        view=view,
-        reward=reward,
-        overrides=parse_sets(sets or []),
-    )
-    runs = [replace(base, seed=s) for s in range(seed, seed + seeds)]
-    with Progress(*_progress_columns(), transient=False) as bar:
-        if len(runs) == 1:
-            from pnp_twin.learning.train import train
-
-            task = bar.add_task(f"train {mode.value}", total=steps, info="")
-
-            def show(p: dict[str, Any]) -> None:
-                info = (
-                    f"{p['steps_per_s']:.0f} steps/s  reward/step {p['reward']:.3f}  "
-                    f"G {p['gripping_rate']:.1f} %  eps {p['epsilon']:.2f}"
-                )
-                bar.update(task, completed=p["step"], info=info)
-
-            folders = [str(train(runs[0], show))]
-        else:
-            task = bar.add_task(f"train {mode.value} x{len(runs)}", total=len(runs), info="")
-            folders = []
-
-            def done(folder: str) -> None:
-                folders.append(folder)
-                bar.update(task, advance=1, info=Path(folder).name)
-
-            if backend == "ray":
-                ray_map(_train_one, runs, done, workers, address)
-            else:
-                ctx = get_context("spawn")
-                with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-                    for fut in as_completed([pool.submit(_train_one, r) for r in runs]):
-                        done(fut.result())
+    if kw["backend"] not in BACKENDS:
+        fail(f"--backend: '{kw['backend']}' is not allowed; allowed {', '.join(BACKENDS)}")
+    args = _train_args(kw)
+    runs = [replace(args, seed=s) for s in range(args.seed, args.seed + kw["seeds"])]
+    if len(runs) == 1:
+        folders = [_train_with_progress(runs[0])]
+    else:
+        folders = _train_seeds(runs, kw["workers"], kw["backend"], kw["address"])
     for f in sorted(folders):
         typer.echo(f)
 
 
-def _train_rollout(
-    scenario: str,
-    out: Path,
-    mode: Mode,
-    seed: int,
-    seeds: int,
-    workers: int,
-    episodes: int,
-    futures: int,
-    rules: str,
-    network: str,
-    device: str,
-    eval_seeds: int,
-    resume: bool,
-    sets: list[str] | None,
-) -> None:
-    """``train --targets rollout``: one async run, labels from ``workers`` processes."""
+def _train_args(kw: dict[str, Any]) -> TrainArgs:
+    """The TrainArgs of the options, checked before anything is written."""
+    from pnp_twin.learning.envs.driver import EnvError
+    from pnp_twin.learning.train_args import check_args
+
+    overrides = parse_sets(kw["sets"] or [])
+    load_scenario(kw["scenario"], overrides)  # fail early on a bad scenario
+    try:
+        weights = tuple(float(w) for w in kw["reward_weights"].split(","))
+    except ValueError:
+        fail(f"--reward-weights: '{kw['reward_weights']}' is not two numbers, e.g. 1,1")
+    values = {f.name: kw[f.name] for f in fields(TrainArgs) if f.name in kw}
+    args = TrainArgs(
+        **{
+            **values,
+            "mode": kw["mode"].value,
+            "out": str(kw["out"]),
+            "rules": tuple(r.strip() for r in (kw["rules"] or TD_RULES).split(",") if r.strip()),
+            "reward_weights": weights,
+            "overrides": overrides,
+        }
+    )
+    try:
+        rules = check_args(args)
+    except EnvError as e:
+        field, _, rest = str(e).partition(":")
+        fail(f"--{field.replace('_', '-')}:{rest}")
+    return replace(args, rules=rules)
+
+
+def _train_with_progress(args: TrainArgs) -> str:
+    from pnp_twin.learning.train import TrainingInterrupted, train
+
+    with TrainProgress(f"train {args.mode}", args.steps) as show:
+        try:
+            return str(train(args, show.training_row))
+        except TrainingInterrupted as e:
+            show.close()
+            fail(str(e), INTERRUPTED)
+
+
+def _train_seeds(
+    runs: list[TrainArgs], workers: int, backend: str, address: str | None
+) -> list[str]:
+    folders: list[str] = []
+    with TrainProgress(f"train {runs[0].mode} x{len(runs)}", len(runs)) as show:
+
+        def done(folder: str) -> None:
+            folders.append(folder)
+            show.advance(Path(folder).name)
+
+        if backend == "ray":
+            ray_map(_train_one, runs, done, workers, address)
+        else:
+            for folder in pool_map_ordered(_train_one, runs, workers, on_result=done):
+                del folder
+    return folders
+
+
+def _train_rollout(kw: dict[str, Any]) -> None:
+    """``train --targets rollout``: one async run, labels from ``--workers`` processes."""
     from pnp_twin.learning.rollout import LabelSettings
     from pnp_twin.learning.rollout_train import RolloutArgs, train_rollout
 
-    if mode is not Mode.async_:
+    if kw["mode"] is not Mode.async_:
         fail("--targets rollout trains the async meta-controller; use --mode async")
-    if seeds != 1:
+    if kw["seeds"] != 1:
         fail("--targets rollout trains one seed; --workers sets the labelling processes")
+    rules = kw["rules"] or TD_RULES.replace("SIRO,", "")  # SIRO cannot be labelled
     chosen = [r.strip().upper() for r in rules.split(",") if r.strip()]
-    if rules == "FIFO,LIFO,SIRO,SD,LD,SPT":  # the td default; SIRO cannot be labelled
-        chosen.remove("SIRO")
-    load_scenario(scenario, parse_sets(sets or []))  # fail early on a bad scenario
+    overrides = parse_sets(kw["sets"] or [])
+    load_scenario(kw["scenario"], overrides)  # fail early on a bad scenario
+    episodes = kw["episodes"]
     args = RolloutArgs(
-        scenario=scenario,
-        out=str(out),
-        seed=seed,
+        scenario=kw["scenario"],
+        out=str(kw["out"]),
+        seed=kw["seed"],
         episodes=episodes,
         round_episodes=min(100, episodes),
-        workers=workers,
-        settings=LabelSettings(rules=tuple(chosen), futures=futures),
-        network=network,
-        device=device,
-        eval_seeds=eval_seeds,
-        resume=resume,
-        overrides=parse_sets(sets or []),
+        workers=kw["workers"],
+        settings=LabelSettings(rules=tuple(chosen), futures=kw["futures"]),
+        network=kw["network"],
+        device=kw["device"],
+        eval_seeds=kw["eval_seeds"],
+        resume=kw["resume"],
+        overrides=overrides,
     )
-    args.settings.check()  # a bad rule set fails before the progress bar
-    with Progress(*_progress_columns(), transient=False) as bar:
-        task = bar.add_task("train async (rollout targets)", total=episodes, info="")
-
-        def show(row: dict[str, Any]) -> None:
-            info = (
-                f"{row['step']} labels  G {row['gripping_rate']:.2f} %  "
-                f"vs {row['best_rule']} {row['diff_vs_best_rule']:+.2f}"
-            )
-            bar.update(task, completed=row["episodes"], info=info)
-
-        folder = train_rollout(args, show)
+    args.settings.check()  # a bad rule set fails before the progress display
+    with TrainProgress("train async (rollout)", episodes) as show:
+        folder = train_rollout(args, show.rollout_row)
     typer.echo(str(folder))
+
+
+def _register_train() -> None:
+    params = [
+        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=decl)
+        if default is not MISSING
+        else inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, annotation=decl)
+        for name, decl, default in _OPTIONS
+    ]
+    train_cmd.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+    train_cmd.__annotations__ = {name: decl for name, decl, _ in _OPTIONS}
+    app.command("train")(train_cmd)
+
+
+_register_train()
 
 
 @app.command("evaluate")
 def evaluate_cmd(
     scenario: ScenarioArg,
-    policy: Annotated[str, typer.Option("--policy", help="The trained policy, hdqn:DIR.")],
+    policy: Annotated[
+        str, typer.Option("--policy", help="The trained policy: hdqn:DIR or sb3:MODEL.zip.")
+    ],
     seeds: Annotated[int, typer.Option("--seeds", min=2, help="Held-out seeds 0..N-1.")] = 20,
     first_seed: Annotated[int, typer.Option("--first-seed", min=0, help="First seed.")] = 0,
     mix: Annotated[
@@ -297,44 +367,50 @@ def evaluate_cmd(
     ] = None,
     sets: SetOpt = None,
 ) -> None:
-    """Compare a trained HDQN with every rule and the best rule mix, paired by seed."""
+    """Compare a trained policy with every rule and the best rule mix, paired by seed."""
     _need_torch()
     from pnp_twin.learning.evaluate import compare, write_evaluation
     from policies.registry import make_policy
 
-    prefix, sep, folder = policy.partition(":")
-    if not sep or prefix.lower() != "hdqn" or not folder:
-        fail(f"--policy: '{policy}' is not a trained policy; give hdqn:DIR")
+    prefix, sep, target = policy.partition(":")
+    if not sep or prefix.lower() not in ("hdqn", "sb3") or not target:
+        fail(f"--policy: '{policy}' is not a trained policy; give hdqn:DIR or sb3:MODEL.zip")
+    reference = target if prefix.lower() == "hdqn" else policy
     line = load_scenario(scenario, parse_sets(sets or []))
     if mix is not None:
         make_policy(mix, line.robots.count)  # a bad mix fails here, in one line
     if out is not None and out.exists() and not out.is_dir():
         fail(f"--out: '{out}' is a file; give a folder (e.g. the run folder)")
-    result = compare(line, folder, seeds=seeds, first_seed=first_seed, mix=mix, duration=duration)
+    make_policy(policy, line.robots.count)  # a broken model fails before any run
+    result = compare(
+        line, reference, seeds=seeds, first_seed=first_seed, mix=mix, duration=duration
+    )
+    stdout_console().print(_comparison_table(result, line.name))
+    if out is not None:
+        for path in write_evaluation(result, reference, out):
+            typer.echo(f"wrote {path}", err=True)
+
+
+def _comparison_table(result: Any, name: str) -> Table:
     table = Table(
-        title=f"{line.name}: gripping rate on seeds {result.seeds[0]}..{result.seeds[-1]}",
+        title=f"{name}: gripping rate on seeds {result.seeds[0]}..{result.seeds[-1]}",
         box=box.SIMPLE,
     )
-    for col in ("policy", "G %", "95% CI", "HDQN - policy", "paired 95% CI", "HDQN better"):
+    for col in ("policy", "G %", "95% CI", "trained - policy", "paired 95% CI", "better"):
         table.add_column(col, justify="left" if col == "policy" else "right")
     for row in result.table.itertuples():
         ref = row.policy == result.reference
-        diff = "" if ref else f"{row.diff:+.2f}"
         ci = (
             ""
             if ref or math.isnan(row.diff_ci_low)
-            else (f"[{row.diff_ci_low:+.2f}, {row.diff_ci_high:+.2f}]")
+            else f"[{row.diff_ci_low:+.2f}, {row.diff_ci_high:+.2f}]"
         )
-        better = "" if ref else ("yes" if row.diff_ci_low > 0 else "no")
         table.add_row(
             row.policy,
             f"{row.gripping_rate:.2f}",
             f"[{row.ci_low:.2f}, {row.ci_high:.2f}]",
-            diff,
+            "" if ref else f"{row.diff:+.2f}",
             ci,
-            better,
+            "" if ref else ("yes" if row.diff_ci_low > 0 else "no"),
         )
-    stdout_console().print(table)
-    if out is not None:
-        for path in write_evaluation(result, folder, out):
-            typer.echo(f"wrote {path}", err=True)
+    return table

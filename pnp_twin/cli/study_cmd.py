@@ -38,6 +38,7 @@ from rich.text import Text
 
 from pnp_twin.cli.app import SetOpt, app
 from pnp_twin.cli.console import note, stderr_console, stdout_console
+from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.studies import Options, build_plan, run_sweep
 from pnp_twin.studies.folder import Tables
 from pnp_twin.studies.plan import AUTO
@@ -79,6 +80,14 @@ BackendOpt = Annotated[Backend, typer.Option("--backend", help="local process po
 AddressOpt = Annotated[
     str | None,
     typer.Option("--address", help="Ray cluster address (default RAY_ADDRESS, else a local Ray)."),
+]
+EngineOpt = Annotated[
+    Engine,
+    typer.Option(
+        "--engine",
+        help="Simulation engine: auto (compiled where it can; the default), fast or simpy. "
+        "Results are identical; results.csv records which ran.",
+    ),
 ]
 RepsOpt = Annotated[
     str | None,
@@ -159,6 +168,10 @@ def progress_bar(label: str) -> Iterator[Any]:
 
     try:
         yield update
+    except BaseException:
+        if not state["last"]:  # nothing done: the error line alone says what happened
+            bar.live.transient = True
+        raise
     finally:
         if bar.live.is_started:
             bar.stop()
@@ -171,10 +184,13 @@ def _options(
     fresh: bool,
     progress: Any,
     confidence: float = 0.95,
+    engine: Engine = Engine.auto,
 ) -> Options:
     w = workers if workers is not None else (os.cpu_count() or 1)
     command = shlex.join(["pnp-twin", *sys.argv[1:]])
-    return Options(backend.value, w, address, fresh, progress, command, confidence)
+    opts = Options(backend.value, w, address, fresh, progress, command, confidence)
+    opts.engine = engine.value
+    return opts
 
 
 def _load(scenario: str, sets: list[str] | None) -> Scenario:
@@ -226,11 +242,11 @@ def _replications(value: str | None) -> int | str | None:
 
 def _with_precision(
     sc: Scenario, replications: str | None, half_width: float | None, most: int | None
-) -> tuple[Scenario, int | str | None]:
+) -> tuple[Scenario, int | None]:
     """The scenario with -r auto's settings in its sweep section (where every study reads
     them), and the replications to pass on."""
     reps = _replications(replications)
-    if reps != AUTO and half_width is None and most is None:
+    if not isinstance(reps, str) and half_width is None and most is None:
         return sc, reps
     sets: dict[str, Any] = {"sweep.replications": reps} if reps is not None else {}
     if half_width is not None:
@@ -331,6 +347,7 @@ def sweep(
     fresh: FreshOpt = False,
     no_report: NoReportOpt = False,
     force: ForceOpt = False,
+    engine: EngineOpt = Engine.auto,
 ) -> None:
     """Run a study: the sweep grid x policies x replications (common random numbers)."""
     sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
@@ -338,7 +355,8 @@ def sweep(
     plan = build_plan(sc, policies=policy, replications=reps)
     _check_out(out)
     with progress_bar("sweep") as update:
-        tables = run_sweep(plan, out, _options(workers, backend, address, fresh, update))
+        opts = _options(workers, backend, address, fresh, update, engine=engine)
+        tables = run_sweep(plan, out, opts)
     stdout_console().print(_sweep_table(tables, list(plan.grid)))
     line = _precision_line(out)
     if line:
@@ -373,6 +391,7 @@ def size(
         ),
     ] = "extend",
     force: ForceOpt = False,
+    engine: EngineOpt = Engine.auto,
 ) -> None:
     """The smallest robot count reaching a target gripping rate with a confidence."""
     sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
@@ -380,7 +399,7 @@ def size(
     counts = 1 if COUNT in grid else max(8, 2 * sc.robots.count)  # what run_size adds
     _check_work(sc, reps, _policy_count(sc, policy), force, counts * (1 if MTBF in grid else 2))
     _check_out(out)
-    opts = _options(workers, backend, address, fresh, None, confidence)
+    opts = _options(workers, backend, address, fresh, None, confidence, engine)
     with progress_bar("size") as update:
         opts.progress = update
         tables, sizing = run_size(sc, out, target, opts, policy, reps, layout)
@@ -431,6 +450,7 @@ def mix(
     fresh: FreshOpt = False,
     no_report: NoReportOpt = False,
     force: ForceOpt = False,
+    engine: EngineOpt = Engine.auto,
 ) -> None:
     """Search the best per-robot mix of dispatching rules (exhaustive or GRASP)."""
     sc = _load(scenario, sets)
@@ -443,10 +463,10 @@ def mix(
     _check_work(sc, reps, budget, force, grid={})  # a mix search sweeps no grid
     _check_out(out)
     names = [r for r in (rules or "").split(",") if r.strip()] or None
-    opts = _options(workers, backend, address, fresh, None)
+    opts = _options(workers, backend, address, fresh, None, engine=engine)
     with progress_bar("mix") as update:
         opts.progress = update
-        _, result = run_mix(sc, out, opts, names, reps, budget)
+        _, result = run_mix(sc, out, opts, names, reps if isinstance(reps, int) else None, budget)
     t = Table(
         title=f"Best rule mixes ({result['method']}, {result['evaluated']} evaluated; "
         "gripping rate %, 95 % CI)",

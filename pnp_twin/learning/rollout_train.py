@@ -23,9 +23,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +42,7 @@ from pnp_twin.learning.train import (
     run_name,
     validate,
 )
+from pnp_twin.parallel import pool_map_ordered
 from policies.hdqn.agent import AgentConfig, DQNAgent
 from policies.hdqn.checkpoint import META, save_checkpoint
 from policies.hdqn.policy import HDQNPolicy
@@ -53,6 +52,8 @@ from twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 
+PRELOAD = ("pnp_twin.learning.rollout",)
+"""Modules the labelling workers' forkserver imports once (they never import torch)."""
 EPISODE_SEED_BASE = 2_000_000
 """Rollout episodes of run seed s use seeds 2,000,000 + 10,000 s + i (disjoint from the
 validation seeds 500,000 + i and from ``pnp-twin evaluate``'s 0..n-1)."""
@@ -156,52 +157,53 @@ def train_rollout(
     columns = ["step", "episodes", "wall_time", *VALIDATION_COLUMNS]
     eval_log = CsvLog(folder / "eval.csv", columns, append=args.resume)
     t0 = time.perf_counter()
-    ctx = get_context("spawn")
-    with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx) as pool:
-        while done < args.episodes:
-            upto = min(args.episodes, done + args.round_episodes)
-            seeds = [EPISODE_SEED_BASE + 10_000 * args.seed + i for i in range(done, upto)]
-            jobs = [(scenario, e, args.settings) for e in seeds]
-            # map keeps the episode order, so the labels do not depend on the worker count
-            parts.extend(pool.map(_label, jobs) if args.workers > 1 else map(_label, jobs))
-            labels = Labels.concat(parts)
-            parts = [labels]
-            done = upto
-            _save_labels(labels_path, labels, done)
-            agent = fit(labels, args, n, device)
-            meta = {
-                "name": "hdqn-async",
-                "mode": "async",
-                "view": "belt",
-                "termination": "t_continue",
-                "targets": "rollout",
-                "rules": list(rules),
-                "n_robots": n,
-                "scenario": base.model_dump(mode="json"),
-                "train_args": {**asdict(args), "view": "belt", "mode": "async"},
-                "device": str(device),
-                "counters": {
-                    "step": len(labels),
-                    "episodes": done,
-                    "wall_time": time.perf_counter() - t0,
-                },
-            }
-            save_checkpoint(folder, agent, meta, train_state=False)
-            row = {
+    while done < args.episodes:
+        upto = min(args.episodes, done + args.round_episodes)
+        seeds = [EPISODE_SEED_BASE + 10_000 * args.seed + i for i in range(done, upto)]
+        jobs = [(scenario, e, args.settings) for e in seeds]
+        # results in episode order, so the labels do not depend on the worker count
+        if args.workers > 1:
+            parts.extend(pool_map_ordered(_label, jobs, args.workers, PRELOAD))
+        else:
+            parts.extend(map(_label, jobs))
+        labels = Labels.concat(parts)
+        parts = [labels]
+        done = upto
+        _save_labels(labels_path, labels, done)
+        agent = fit(labels, args, n, device)
+        meta = {
+            "name": "hdqn-async",
+            "mode": "async",
+            "view": "belt",
+            "termination": "t_continue",
+            "targets": "rollout",
+            "rules": list(rules),
+            "n_robots": n,
+            "scenario": base.model_dump(mode="json"),
+            "train_args": {**asdict(args), "view": "belt", "mode": "async"},
+            "device": str(device),
+            "counters": {
                 "step": len(labels),
                 "episodes": done,
                 "wall_time": time.perf_counter() - t0,
-                **validate(HDQNPolicy(agent, meta), val_scenario, validation, baselines),
-            }
-            eval_log.row([row[c] for c in columns])
-            log.info(
-                "%d episodes: G %.2f %% (%s %+.2f)",
-                done,
-                row["gripping_rate"],
-                row["best_rule"],
-                row["diff_vs_best_rule"],
-            )
-            if progress is not None:
-                progress(row)
+            },
+        }
+        save_checkpoint(folder, agent, meta, train_state=False)
+        row = {
+            "step": len(labels),
+            "episodes": done,
+            "wall_time": time.perf_counter() - t0,
+            **validate(HDQNPolicy(agent, meta), val_scenario, validation, baselines),
+        }
+        eval_log.row([row[c] for c in columns])
+        log.info(
+            "%d episodes: G %.2f %% (%s %+.2f)",
+            done,
+            row["gripping_rate"],
+            row["best_rule"],
+            row["diff_vs_best_rule"],
+        )
+        if progress is not None:
+            progress(row)
     eval_log.close()
     return folder

@@ -71,7 +71,9 @@ class Problem:
         """Field -> value for a parameter vector (fields sharing a parameter get its value)."""
         return {r: float(v) for p, v in zip(self.params, x, strict=True) for r in p.refs}
 
-    def scenarios(self, x: Sequence[float], points: Sequence[dict[FieldRef, Any]]) -> list[Scenario]:
+    def scenarios(
+        self, x: Sequence[float], points: Sequence[dict[FieldRef, Any]]
+    ) -> list[Scenario]:
         """The line at each point with the parameters ``x``."""
         return [apply_values(self.scenario, {**pt, **self.values(x)}) for pt in points]
 
@@ -168,21 +170,23 @@ class Fit:
 
     def evaluate_many(self, xs: Sequence[Sequence[float]]) -> list[Evaluation]:
         """Evaluate several parameter vectors in one batch (parallel over ``--workers``)."""
-        xs = [tuple(float(v) for v in x) for x in xs]
+        vectors = [tuple(float(v) for v in x) for x in xs]
         n = len(self._points)
-        scenarios = [sc for x in xs for sc in self.problem.scenarios(x, self._points)]
-        preds = self.evaluator.predict(scenarios, self._labels * len(xs))
+        scenarios = [sc for x in vectors for sc in self.problem.scenarios(x, self._points)]
+        preds = self.evaluator.predict(scenarios, self._labels * len(vectors))
         out = []
-        for b, x in enumerate(xs):
+        for b, x in enumerate(vectors):
             mine = preds[b * n : (b + 1) * n]
             res = residuals(self.problem.targets, mine)
             ev = Evaluation(x, mine, res, objective(self.problem.targets, res))
             out.append(ev)
             self.history.append((x, ev.objective))
-            if self.tracking and (self.best is None or ev.objective < self.best.objective):
-                self.best = ev
-            if not self.tracking and self.best is not None and ev.objective < self.best.objective:
-                self.lower = ev if self.lower is None or ev.objective < self.lower.objective else self.lower
+            if self.tracking:
+                if self.best is None or ev.objective < self.best.objective:
+                    self.best = ev
+            elif self.best is not None:
+                if ev.objective < (self.lower or self.best).objective:
+                    self.lower = ev
             log.info("evaluation %d: %s -> objective %.4g", len(self.history), x, ev.objective)
             if self.progress is not None and self.best is not None:
                 self.progress(len(self.history), self.best.objective)
@@ -190,7 +194,7 @@ class Fit:
 
     def scaled(self, u: np.ndarray) -> float:
         """The objective at unit coordinates ``u`` in [0, 1]^k."""
-        return self.evaluate(self.to_x(u)).objective
+        return self.evaluate(self.to_x(u).tolist()).objective
 
     def to_x(self, u: np.ndarray) -> np.ndarray:
         lo = np.array([p.low for p in self.problem.params])
@@ -287,11 +291,13 @@ def curve_values(targets: Targets, j: int, n: int) -> list[Any]:
     return sorted({*np.round(np.linspace(lo, hi, n), 6).tolist(), *seen})
 
 
-def curves(fit: Fit, best: Sequence[float]) -> list[tuple[FieldRef, list[tuple[Any, PointPrediction]]]]:
+def curves(
+    fit: Fit, best: Sequence[float]
+) -> list[tuple[FieldRef, list[tuple[Any, PointPrediction]]]]:
     """The fitted response across each varied field (other varied fields as at point 1)."""
     t = fit.problem.targets
     out = []
-    n = max(fit.problem.profile, 2)
+    n = max(fit.problem.profile, 5)
     for j, ref in enumerate(t.varied):
         values = curve_values(t, j, n)
         points = [{**t.point(0), ref: v} for v in values]
@@ -337,7 +343,9 @@ def calibrate(
     )
 
 
-def near_optimal(line: Sequence[tuple[float, float]], best: float, margin: float = 1.0) -> tuple[float, float]:
+def near_optimal(
+    line: Sequence[tuple[float, float]], best: float, margin: float = 1.0
+) -> tuple[float, float]:
     """The span of profile values whose objective is within ``margin`` of ``best``."""
     ok = [v for v, o in line if o <= best + margin]
     return (min(ok), max(ok)) if ok else (math.nan, math.nan)

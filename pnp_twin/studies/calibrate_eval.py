@@ -17,7 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,6 +35,7 @@ log = logging.getLogger(__name__)
 
 EVALS = "evals"
 BEST_BY = "gripping_rate"
+POOL_MIN_RUNS = 8  # runs per worker below which a batch runs in-process
 
 
 @dataclass(frozen=True)
@@ -47,7 +48,9 @@ class PointPrediction:
     ci_high: dict[str, float]
 
 
-def _key(scenario: Scenario, policies: Sequence[str], seeds: Sequence[int], kpis: Sequence[str]) -> str:
+def _key(
+    scenario: Scenario, policies: Sequence[str], seeds: Sequence[int], kpis: Sequence[str]
+) -> str:
     what = {
         "scenario": scenario.model_dump(mode="json", exclude={"source_dir", "name", "description"}),
         "policies": list(policies),
@@ -91,7 +94,9 @@ class Evaluator:
         self.simulated = 0  # points simulated by this evaluator (not replayed)
         self.replayed = 0
 
-    def predict(self, scenarios: Sequence[Scenario], labels: Sequence[str]) -> list[PointPrediction]:
+    def predict(
+        self, scenarios: Sequence[Scenario], labels: Sequence[str]
+    ) -> list[PointPrediction]:
         """The prediction at each scenario; journalled ones are read back, not simulated."""
         keys = [_key(s, self.policies, self.seeds, self.kpis) for s in scenarios]
         runs: dict[int, dict[str, list[dict[str, float]]]] = {}
@@ -136,7 +141,8 @@ class Evaluator:
             out[int(i)][p][int(k)] = {c: float(row[c]) for c in self.kpis}
 
         try:
-            if self.workers > 1 and len(specs) > 1:
+            # a fresh pool costs a second or two to start: worth it only for a big batch
+            if self.workers > 1 and len(specs) >= POOL_MIN_RUNS * self.workers:
                 pool_map(execute, specs, keep, self.workers, preload=["pnp_twin.studies.execute"])
             else:
                 for spec in specs:
@@ -146,8 +152,7 @@ class Evaluator:
         except Exception as e:  # a line the twin cannot run is the user's point, not a crash
             log.debug("simulation failed", exc_info=True)
             where = labels[0] if len(labels) == 1 else f"one of {', '.join(labels)}"
-            raise StudyError(f"point {where} cannot be simulated: {type(e).__name__}: {e}") from None
+            raise StudyError(
+                f"point {where} cannot be simulated: {type(e).__name__}: {e}"
+            ) from None
         return out
-
-
-Progress = Callable[[int, float], None]

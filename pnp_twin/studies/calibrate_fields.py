@@ -187,7 +187,9 @@ def apply_values(scenario: Scenario, values: Mapping[FieldRef, Any]) -> Scenario
     try:
         return validate(data)
     except ScenarioError as e:
-        where = ", ".join(f"{r.path}={v:g}" if _num(v) else f"{r.path}={v}" for r, v in values.items())
+        where = ", ".join(
+            f"{r.path}={v:g}" if _num(v) else f"{r.path}={v}" for r, v in values.items()
+        )
         raise StudyError(f"cannot simulate ({where}): {e}") from None
 
 
@@ -242,7 +244,9 @@ def parse_fit(spec: str) -> FitParam:
     for path in paths.split(","):
         ref = resolve_path(path.strip(), "--fit")
         if not ref.numeric:
-            raise StudyError(f"--fit {ref.path}: is not a numeric field; only numbers can be fitted")
+            raise StudyError(
+                f"--fit {ref.path}: is not a numeric field; only numbers can be fitted"
+            )
         if ref.whole:
             raise StudyError(
                 f"--fit {ref.path}: is a whole number; calibrate fits continuous fields "

@@ -61,11 +61,15 @@ def profile_rows(cal: Calibration) -> list[dict[str, Any]]:
     names = [p.name for p in cal.problem.params]
     rows: list[dict[str, Any]] = []
     for j, line in enumerate(cal.profiles):
-        rows += [{"param": names[j], "value": v, "param_2": "", "value_2": None, "objective": o}
-                 for v, o in line]
+        rows += [
+            {"param": names[j], "value": v, "param_2": "", "value_2": None, "objective": o}
+            for v, o in line
+        ]
     for j, m, grid in cal.pairs:
-        rows += [{"param": names[j], "value": a, "param_2": names[m], "value_2": b, "objective": o}
-                 for a, b, o in grid]
+        rows += [
+            {"param": names[j], "value": a, "param_2": names[m], "value_2": b, "objective": o}
+            for a, b, o in grid
+        ]
     return rows
 
 
@@ -95,7 +99,9 @@ def summary(cal: Calibration, command: str, scenario_file: Path) -> dict[str, An
     start = p.start()
     params = []
     for j, prm in enumerate(p.params):
-        lo, hi = near_optimal(cal.profiles[j], cal.best.objective) if cal.profiles[j] else (None, None)
+        lo, hi = (
+            near_optimal(cal.profiles[j], cal.best.objective) if cal.profiles[j] else (None, None)
+        )
         params.append(
             {
                 "name": prm.name,
@@ -132,6 +138,11 @@ def summary(cal: Calibration, command: str, scenario_file: Path) -> dict[str, An
         "command": command,
         "date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "scenario_file": str(scenario_file),
+        "lower_found": (
+            {"x": list(cal.extra["lower"][0]), "objective": cal.extra["lower"][1]}
+            if "lower" in cal.extra
+            else None
+        ),
     }
 
 
@@ -145,13 +156,21 @@ def header(cal: Calibration, info: dict[str, Any]) -> str:
     t = p.targets
     lines = [
         f"Calibrated by `pnp-twin calibrate` on {info['date']}:",
-        *textwrap.wrap(info["command"], 96, initial_indent="  ", subsequent_indent="    ",
-                       break_on_hyphens=False, break_long_words=False),
+        *textwrap.wrap(
+            info["command"],
+            96,
+            initial_indent="  ",
+            subsequent_indent="    ",
+            break_on_hyphens=False,
+            break_long_words=False,
+        ),
         *textwrap.wrap(
             f"Fitted to {t.source} ({t.n} points; {', '.join(t.kpis)}), the prediction at each "
             f"point being the best of {', '.join(p.policies)} over {p.replications} "
             f"common-random-number replications of {p.scenario.duration:g} s (warm-up "
-            f"{p.scenario.warmup:g} s).", 98),
+            f"{p.scenario.warmup:g} s).",
+            98,
+        ),
         "Fitted (bounds; start -> fitted):",
     ]
     for q in info["params"]:
@@ -197,8 +216,12 @@ def write_outputs(
     body = dumps_toml(scenario_mapping(cal, source, sets))
     write_text(header(cal, info) + body, scenario_file)
     write_table(pd.DataFrame(info["points"]), folder / "points.csv")
-    write_table(pd.DataFrame(info["profiles"], columns=["param", "value", "param_2", "value_2",
-                                                        "objective"]), folder / "profile.csv")
+    write_table(
+        pd.DataFrame(
+            info["profiles"], columns=["param", "value", "param_2", "value_2", "objective"]
+        ),
+        folder / "profile.csv",
+    )
     write_table(pd.DataFrame(info["curves"]), folder / "curve.csv")
     write_json(info, folder / SUMMARY_FILE)
     return info

@@ -94,7 +94,9 @@ def _read(path: Path) -> pd.DataFrame:
     except FileNotFoundError:
         raise StudyError(f"--targets: no file '{path}'") from None
     except pd.errors.EmptyDataError:
-        raise StudyError(f"--targets {path}: is empty; give a header row and a row per point") from None
+        raise StudyError(
+            f"--targets {path}: is empty; give a header row and a row per point"
+        ) from None
     except (pd.errors.ParserError, UnicodeDecodeError) as e:
         first = str(e).strip().splitlines()[0]
         raise StudyError(f"--targets {path}: not a readable CSV: {first}") from None

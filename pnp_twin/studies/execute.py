@@ -28,7 +28,9 @@ def cell(value: Any) -> Any:
 def simulate_spec(spec: RunSpec) -> RunResult:
     """Simulate one run of a study."""
     policy = make_policy(spec.policy, spec.scenario.robots.count)
-    return simulate(spec.scenario, policy, seed=spec.seed, policy_name=spec.policy)
+    return simulate(
+        spec.scenario, policy, seed=spec.seed, policy_name=spec.policy, engine=spec.engine
+    )
 
 
 def execute(spec: RunSpec) -> dict[str, Any]:
@@ -40,5 +42,6 @@ def execute(spec: RunSpec) -> dict[str, Any]:
     for k, v in flat_kpis(result.kpis).items():
         if k not in DROPPED:
             row[k] = v.item() if hasattr(v, "item") else v
+    row["engine"] = result.meta.get("engine", "simpy")  # which engine ran (same results)
     row["wall_time"] = result.wall_time
     return row

@@ -182,7 +182,10 @@ class Journal:
 
     def _compare(self, old: dict[str, Any], new: dict[str, Any]) -> None:
         def without(d: dict[str, Any]) -> dict[str, Any]:
-            return {k: v for k, v in d.items() if k not in REPLICATION_KEYS}
+            out = {k: v for k, v in d.items() if k not in REPLICATION_KEYS}
+            if isinstance(out.get("scenario"), dict):  # its sweep section is the rest of d
+                out["scenario"] = {k: v for k, v in out["scenario"].items() if k != "sweep"}
+            return out
 
         changes = differences(without(old), without(new))
         if changes:

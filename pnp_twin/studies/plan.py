@@ -66,6 +66,7 @@ class RunSpec:
     replication: int
     seed: int
     scenario: Scenario
+    engine: str = "auto"  # twin.run.simulate's engine: simpy | fast | auto (same results)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +49,7 @@ class Options:
     progress: Progress | None = None
     command: str = ""
     confidence: float = 0.95
+    engine: str = "auto"  # simulation engine of every run (results are identical)
 
 
 @dataclass
@@ -100,6 +101,7 @@ class Session:
             self._report()
 
         o = self.options
+        todo = [replace(s, engine=o.engine) for s in todo]
         run_specs(todo, on_row, o.backend, o.workers, o.address)
         rows = self.journal.rows(specs)
         missing = [s.run_id for s, row in zip(specs, rows, strict=True) if row is None]
@@ -121,6 +123,7 @@ class Session:
             "backend": o.backend,
             "command": o.command,
             "confidence": o.confidence,
+            "engine": o.engine,
             "runs_skipped": self.skipped,
             "runs_executed": self.ran,
             **({"precision": self.precision} if self.precision else {}),

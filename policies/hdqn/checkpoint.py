@@ -24,12 +24,10 @@ from __future__ import annotations
 import json
 import logging
 import math
-import platform
 from dataclasses import asdict
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-import numpy as np
 import torch
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 from safetensors.torch import load_file, save
@@ -40,6 +38,7 @@ from policies.hdqn.network import PRESETS
 from policies.registry import rule_names
 from twin.errors import UserError
 from twin.output import atomic_path, write_text
+from twin.output import versions as package_versions
 from twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -232,18 +231,7 @@ def warn_if_other_line(meta: dict[str, Any], belt: Any, robots: list[Any], where
 
 def versions() -> dict[str, str]:
     """Versions of what produced the weights."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        twin = version("pnp-twin")
-    except PackageNotFoundError:
-        twin = "unknown"
-    return {
-        "pnp_twin": twin,
-        "torch": torch.__version__,
-        "numpy": np.__version__,
-        "python": platform.python_version(),
-    }
+    return package_versions("pnp-twin", "torch", "numpy")
 
 
 def _atomic_json(path: Path, data: dict[str, Any]) -> None:

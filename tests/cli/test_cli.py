@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
 import tomllib
 from pathlib import Path
 
@@ -15,7 +16,16 @@ from typer.testing import CliRunner
 
 from pnp_twin.cli import app
 from twin.loader import load_scenario, shipped_scenarios
-from twin.output import OutputError, dumps_json, dumps_toml, write_json, write_table, write_text
+from twin.output import (
+    OutputError,
+    dumps_json,
+    dumps_toml,
+    remove_temporaries,
+    versions,
+    write_json,
+    write_table,
+    write_text,
+)
 from twin.scenario import Scenario
 
 SHORT = ["--set", "duration=40", "--set", "warmup=5"]
@@ -66,7 +76,7 @@ def test_json_is_one_object_that_agrees_with_the_events_file(tmp_path: Path) -> 
     assert kpis["parts_picked"] == len(picked)
     assert kpis["parts_missed"] == int((window["outcome"] == "missed").sum())
     assert kpis["parts_presented"] == kpis["parts_picked"] + kpis["parts_missed"]
-    per_robot = np.bincount(picked["robot"].astype(int), minlength=4)
+    per_robot = np.bincount(picked["robot"].astype(int) - 1, minlength=4)  # robots from 1
     assert [r["picks"] for r in kpis["robots"]] == per_robot.tolist()
     assert kpis["gripping_rate"] == pytest.approx(100 * len(picked) / len(window))
     states = pd.read_parquet(spans)
@@ -232,3 +242,51 @@ def test_dumps_toml_round_trips_nested_tables() -> None:
     expected = {k: v for k, v in data.items() if k != "skip"}
     assert back == expected
     assert dumps_json({"v": [float("-inf")]}) == '{"v": [null]}'
+
+
+def test_write_json_keeps_nan_when_asked_so_rows_round_trip(tmp_path: Path) -> None:
+    target = tmp_path / "row.json"
+    write_json({"g": float("nan"), "p": tmp_path, "n": np.float64(2.5)}, target, keep_nan=True)
+    back = json.loads(target.read_text())
+    assert np.isnan(back["g"]) and back["p"] == str(tmp_path) and back["n"] == 2.5
+
+
+def test_versions_name_python_and_each_distribution() -> None:
+    v = versions("pnp-twin", "numpy", "no-such-dist-xyz")
+    assert list(v) == ["python", "pnp_twin", "numpy", "no_such_dist_xyz"]
+    assert v["numpy"] == np.__version__ and v["no_such_dist_xyz"] == "unknown"
+
+
+def test_remove_temporaries_removes_only_the_writers_names(tmp_path: Path) -> None:
+    ours = tmp_path / ".results.parquet.0123456789ab.tmp"
+    other = tmp_path / ".notes.tmp"
+    for p in (ours, other):
+        p.write_text("x")
+    assert remove_temporaries(tmp_path) == [ours]
+    assert not ours.exists() and other.exists()
+
+
+@pytest.mark.parametrize("spans", ["same.csv", "./sub/../same.csv"])
+def test_events_and_spans_into_one_file_is_refused(tmp_path: Path, spans: str) -> None:
+    events = tmp_path / "same.csv"
+    events.write_text("keep me\n")
+    code, _, err = cli("run", "paper_baseline", *SHORT, "--events", str(events),
+                       "--spans", str(tmp_path / spans))  # fmt: skip
+    assert code == 2
+    assert err.strip().startswith("error: --spans: '") and "is the file --events writes" in err
+    assert len(err.strip().splitlines()) == 1 and events.read_text() == "keep me\n"
+
+
+def test_sweep_on_an_unreachable_ray_address_fails_fast(tmp_path: Path) -> None:
+    pytest.importorskip("ray")
+    t0 = time.monotonic()
+    code, _, err = cli("sweep", "paper_baseline", "--out", str(tmp_path / "s"), "--no-report",
+                       "--backend", "ray", "--address", "127.0.0.1:1", "-r", "2",
+                       "--set", "sweep.grid={'feeder.rate': [8.0]}", "--set", "sweep.duration=20",
+                       "--set", "sweep.warmup=2",
+                       "--policy", "SD")  # fmt: skip
+    assert code == 2 and time.monotonic() - t0 < 30
+    assert err.strip().splitlines() == [
+        "error: --address 127.0.0.1:1: cannot connect to Ray (Connection refused within 10 s); "
+        "check the address and that the cluster is running"
+    ]

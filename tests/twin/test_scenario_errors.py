@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
 from pnp_twin.cli import app
+from twin.loader import (
+    ScenarioError,
+    apply_overrides,
+    load_scenario,
+    parse_value,
+    validate,
+    with_overrides,
+)
+from twin.scenario import Scenario
 
 # name -> (files to write in the working folder, command line, substrings the line must hold)
 CASES: dict[str, tuple[dict[str, str], list[str], list[str]]] = {
@@ -153,3 +163,118 @@ def test_no_output_file_is_left_by_a_failed_run(
     assert result.exit_code == 2
     assert not (tmp_path / "out" / "parts.csv").exists()
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]
+
+
+# --- the loader and the model, directly -------------------------------------------------------
+
+LAUGHS = 'a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]\n' + "".join(
+    f"{chr(98 + i)}: &{chr(98 + i)} [*{chr(97 + i)},*{chr(97 + i)},*{chr(97 + i)},*{chr(97 + i)}]\n"
+    for i in range(9)
+)
+
+
+def scenario_error(tmp_path: Path, name: str, text: str | bytes) -> str:
+    path = tmp_path / name
+    path.write_bytes(text if isinstance(text, bytes) else text.encode("utf-8"))
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    message = str(info.value)
+    assert "\n" not in message and len(message) < 300, message
+    return message
+
+
+def test_billion_laughs_is_refused_without_expanding_or_echoing(tmp_path: Path) -> None:
+    message = scenario_error(tmp_path, "laughs.yaml", LAUGHS)
+    assert "aliases" in message and "line 2" in message and "lol" not in message
+
+
+def test_non_utf8_and_huge_and_deep_files_are_one_line(tmp_path: Path) -> None:
+    latin = 'name = "caf\xe9"\n'.encode("latin-1")
+    assert "not UTF-8" in scenario_error(tmp_path, "latin.toml", latin)
+    big = scenario_error(tmp_path, "big.yaml", "# " + "x" * 1_100_000 + "\n")
+    assert "at most 1,000,000" in big
+    assert "nested too deeply" in scenario_error(tmp_path, "deep.yaml", "[" * 5000 + "]" * 5000)
+
+
+@pytest.mark.parametrize("text", ["", "# only a comment\n", "{}\n"])
+def test_an_empty_scenario_file_is_refused(tmp_path: Path, text: str) -> None:
+    assert "is empty" in scenario_error(tmp_path, "empty.yaml", text)
+
+
+def test_a_long_bad_value_is_quoted_as_a_short_excerpt() -> None:
+    with pytest.raises(ScenarioError) as info:
+        validate({"robots": {"count": "x" * 5000}})
+    message = str(info.value)
+    assert len(message) < 200 and "more characters" in message
+
+
+def test_override_values_are_numbers_when_they_read_as_numbers() -> None:
+    assert parse_value("1e12") == 1e12 and parse_value("4") == 4
+    assert math.isnan(parse_value("nan")) and parse_value("true") is True
+    assert parse_value("[nan, 1e3]")[1] == 1000.0 and parse_value("SD") == "SD"
+    assert parse_value("[[0, 1e3]]") == [[0, 1000.0]]
+
+
+STRICT = [
+    ("robots.count", True, "input should be a valid integer"),
+    ("feeder.rate", "10", "input should be a valid number"),
+    ("belt.speed", False, "input should be a valid number"),
+    ("robots.bin_offset", [math.nan, math.inf], "finite number"),
+    ("belt.length", math.inf, "finite number"),
+    ("robots.pick_time", 1e300, "less than or equal to 60 s"),
+    ("robots.arm_speed", 1e9, "less than or equal to 100 m/s"),
+    ("feeder.rate", 1e12, "less than or equal to 1000 parts/s"),
+    ("duration", 1e9, "less than or equal to 31536000 s"),
+    ("bins.change_time", -1, "greater than or equal to 0 s"),
+    ("seed", 2**64, "less than or equal to"),
+    ("robots.count", 2.5, "valid integer"),
+]
+
+
+@pytest.mark.parametrize("path, value, needle", STRICT)
+def test_strict_finite_bounded_numbers(path: str, value: object, needle: str) -> None:
+    with pytest.raises(ScenarioError) as info:
+        validate(apply_overrides({}, {path: value}))
+    assert str(info.value).startswith(path) and needle in str(info.value), str(info.value)
+
+
+def test_whole_floats_and_numpy_integers_are_whole_numbers() -> None:
+    import numpy as np
+
+    assert validate({"robots": {"count": 3.0}}).robots.count == 3
+    assert validate({"robots": {"count": np.int64(2)}}).robots.count == 2
+
+
+CONFLICTS = {
+    "trace with poisson": ({"feeder.trace": "t.csv"}, "feeder.trace: given, but"),
+    "mean with uniform": (
+        {"feeder.lateral": "uniform", "feeder.lateral_mean": 0.2},
+        "feeder.lateral_mean: given, but",
+    ),
+    "spread wider than the belt": ({"feeder.lateral_sd": 5.0}, "wider than the belt"),
+    "a crawling arm": ({"robots.acceleration": 1e-9}, "too low to reach belt speed"),
+    "a crawling override": (
+        {"robots.overrides": [{"robot": 2, "acceleration": 0.1}]},
+        "robot 2 is too low",
+    ),
+    "internal field": ({"source_dir": "/etc"}, "source_dir: not a scenario field"),
+    "duplicate policies": ({"sweep.policies": ["SD", "sd"]}, "'sd' is 'SD' again"),
+    "duplicate mixes": ({"sweep.policies": ["SPT,FIFO", " spt, fifo "]}, "again"),
+}
+
+
+@pytest.mark.parametrize("case", list(CONFLICTS))
+def test_conflicting_settings_are_refused(case: str) -> None:
+    sets, needle = CONFLICTS[case]
+    with pytest.raises(ScenarioError) as info:
+        validate(apply_overrides({}, sets))
+    assert needle in str(info.value), str(info.value)
+
+
+def test_source_dir_is_set_by_the_loader_only() -> None:
+    scenario = load_scenario("trace_replay")
+    assert scenario.source_dir and "source_dir" not in scenario.model_dump()
+    assert "source_dir" not in Scenario.model_json_schema()["properties"]
+    assert with_overrides(scenario, {"warmup": 5.0}).source_dir == scenario.source_dir
+    with pytest.raises(ScenarioError, match="source_dir: not a scenario field"):
+        load_scenario("paper_baseline", {"source_dir": "/etc"})

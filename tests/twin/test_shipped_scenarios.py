@@ -12,7 +12,7 @@ import pytest
 from pnp_twin.cli.run_cmd import schema_text
 from policies import make_policy
 from twin import load_scenario, simulate, with_overrides
-from twin.loader import find_scenario, shipped_scenarios
+from twin.loader import find_scenario, read_mapping, shipped_scenarios, validate
 from twin.scenario import Scenario
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
@@ -109,3 +109,18 @@ def test_committed_schema_matches_the_scenario_model() -> None:
     assert committed == schema_text(), "run: pnp-twin schema --out scenarios/scenario.schema.json"
     schema = json.loads(committed)
     assert set(schema["properties"]) == set(Scenario.model_fields)
+
+
+def test_every_default_is_the_paper_baselines_value() -> None:
+    """A field left out of a user's file means "as in paper_baseline" (issue #9)."""
+    baseline = load_scenario("paper_baseline")
+    named = {"name": baseline.name, "description": baseline.description}
+    defaults = Scenario.model_validate(named)
+    assert defaults.model_dump() == baseline.model_dump()
+
+
+@pytest.mark.parametrize("name", shipped_scenarios())
+def test_shipped_scenarios_are_valid_under_the_strict_rules(name: str) -> None:
+    """Each file validates again from its own mapping (strict types, bounds, conflicts)."""
+    data = read_mapping(find_scenario(name))
+    assert validate(data).model_dump() == load_scenario(name).model_dump()

@@ -22,7 +22,7 @@ import numpy as np
 from twin.decision import Policy, RobotSpec
 from twin.fast import layout as L
 from twin.fast import unsupported_reason
-from twin.fast.kernel import run_events, start_robots
+from twin.fast.kernel import close_open_spans, run_events, start_robots
 from twin.feeder import Feeder
 from twin.line import DRAIN_SLACK, robot_specs
 from twin.records import Recorder
@@ -176,13 +176,15 @@ class FastLine:
             self.fed, self.y, self.holder, self.left_at, self.rec_i, self.rec_f,
             self.sp_i, self.sp_f, self.counts, siro, exps, c_i, c_f, self.end_at,
         )  # fmt: skip
+        if status == L.ST_OK:
+            status = close_open_spans(self.ist, self.fs, self.gs, self.sp_i, self.sp_f, self.end_at)
         self.gf[L.NOW] = self.end_at
         return int(status)
 
     # -- records ---------------------------------------------------------------------------
     def recorder(self) -> Recorder:
         """The run's records in the twin's Recorder, so tables are built by the same code."""
-        rec = Recorder(0)
+        rec = Recorder(len(self.fed))  # defaults for every list, then the run's values
         rec.robot = self.rec_i[:, 0].tolist()
         names = L.RULE_NAMES
         rec.rule = [names[c] if c >= 0 else None for c in self.rec_i[:, 1].tolist()]

@@ -44,6 +44,8 @@ from twin.fast.layout import (
     FIFO,
     FIXED,
     HALF,
+    HINT_HI,
+    HINT_LO,
     LD,
     LIFO,
     MTBF,
@@ -106,7 +108,42 @@ from twin.fast.mathlib import intercept_time, move_time, position_along, py_hypo
 FREE = -1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
+def _bisect(a, x, right, hint):
+    """bisect_left (or bisect_right) of sorted ``a``, galloping out from index ``hint``.
+
+    The answer does not depend on the hint (it is the unique insertion point); a good hint
+    (the robot's previous answer: its queries move forward with time) makes it cheap.
+    """
+    n = a.shape[0]
+    h = min(max(hint, 0), n)
+    if h < n and (a[h] <= x if right else a[h] < x):  # answer is above h
+        lo = h + 1
+        step = 1
+        hi = lo
+        while hi < n and (a[hi] <= x if right else a[hi] < x):
+            lo = hi + 1
+            hi = lo + step
+            step *= 2
+        hi = min(hi, n)
+    else:  # answer is at or below h
+        hi = h
+        step = 1
+        lo = hi
+        while lo > 0 and not (a[lo - 1] <= x if right else a[lo - 1] < x):
+            hi = lo - 1
+            lo = max(hi - step, 0)
+            step *= 2
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] <= x if right else a[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _schedule(fs, ist, gs, r, at, prio, pc):
     fs[r, WAKE] = at
     ist[r, WPRIO] = prio
@@ -116,7 +153,7 @@ def _schedule(fs, ist, gs, r, at, prio, pc):
     ist[r, PC] = pc
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _span(gs, sp_i, sp_f, r, state, start, end):
     if end > start:
         k = gs[NSPANS]
@@ -130,7 +167,7 @@ def _span(gs, sp_i, sp_f, r, state, start, end):
         gs[NSPANS] = k + 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _draw(fp, ip, ist, gs, exps, r, col):
     mean = fp[r, col]
     if ip[r, FAILMODE] == FIXED:
@@ -143,8 +180,8 @@ def _draw(fp, ip, ist, gs, exps, r, col):
     return mean * exps[r, k]
 
 
-@njit(cache=True)
-def _candidates(fp, fs, gp, fed, ys, holder, now, r, c_i, c_f):
+@njit(cache=True, inline="always", error_model="numpy")
+def _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f):
     """Robot._candidates: unclaimed parts whose interception point lies in [a, b]."""
     v = gp[V]
     px = fs[r, TOOLX]
@@ -159,8 +196,10 @@ def _candidates(fp, fs, gp, fed, ys, holder, now, r, c_i, c_f):
     lo_x = x_lo
     if 0.0 > x_lo:
         lo_x = 0.0
-    lo = np.searchsorted(fed, now - b / v, side="left")
-    hi = np.searchsorted(fed, now - lo_x / v, side="right")
+    lo = _bisect(fed, now - b / v, False, ist[r, HINT_LO])
+    hi = _bisect(fed, now - lo_x / v, True, ist[r, HINT_HI])
+    ist[r, HINT_LO] = lo
+    ist[r, HINT_HI] = hi
     n = 0
     for i in range(lo, hi):
         if holder[i] != FREE:
@@ -183,7 +222,7 @@ def _candidates(fp, fs, gp, fed, ys, holder, now, r, c_i, c_f):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _lemire(siro, gs, n):
     """numpy Generator.integers(n) on a pre-drawn stream of next_uint32 outputs."""
     rng = n - 1
@@ -211,7 +250,7 @@ def _lemire(siro, gs, n):
     return m >> 32
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _choose(fp, ip, gp, gs, siro, r, n, c_f):
     """policies.rules applied to the candidates (furthest downstream first)."""
     rule = ip[r, RULE]
@@ -249,12 +288,12 @@ def _choose(fp, ip, gp, gs, siro, r, n, c_f):
     return best
 
 
-@njit(cache=True)
-def _next_entry(gp, fed, holder, now, x):
+@njit(cache=True, inline="always", error_model="numpy")
+def _next_entry(gp, fed, holder, now, x, hint):
     """Belt.next_entry: time until the next unclaimed part upstream of x reaches it."""
     v = gp[V]
     lag = x / v
-    i = np.searchsorted(fed, now - lag, side="right")
+    i = _bisect(fed, now - lag, True, hint)
     n = fed.shape[0]
     while i < n and (holder[i] != FREE or fed[i] + lag <= now):
         i += 1
@@ -264,7 +303,7 @@ def _next_entry(gp, fed, holder, now, x):
 
 
 # -- the gateway ---------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _open(fs, ist, gs, mask, now):
     gs[EPOCHS] += 1
     for i in range(ist.shape[0]):  # in robot order, so upstream robots claim first
@@ -273,7 +312,7 @@ def _open(fs, ist, gs, mask, now):
             _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _maybe_all(fs, ist, gs, now):
     n = ist.shape[0]
     mask = np.zeros(n, np.bool_)
@@ -288,7 +327,7 @@ def _maybe_all(fs, ist, gs, now):
         _open(fs, ist, gs, mask, now)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _expected_waiting(ist):
     """(expected is non-empty, expected <= waiting)."""
     some = False
@@ -300,7 +339,7 @@ def _expected_waiting(ist):
     return some, True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _join_any(fs, ist, gs, r, now):
     n = ist.shape[0]
     some, _ = _expected_waiting(ist)
@@ -319,7 +358,7 @@ def _join_any(fs, ist, gs, r, now):
         _open(fs, ist, gs, mask, now)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _down(fs, ist, gi, gs, r, now):
     ist[r, WAITING] = 0
     ist[r, EXPECTED] = 0
@@ -331,7 +370,7 @@ def _down(fs, ist, gi, gs, r, now):
             _open(fs, ist, gs, ist[:, EXPECTED] == 1, now)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _free(fs, ist, gi, gs, r, now):
     ist[r, PC] = PC_HELD
     ist[r, ACTIVE] = 0
@@ -344,7 +383,7 @@ def _free(fs, ist, gi, gs, r, now):
 
 
 # -- the robot -----------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def run_events(
     fp, ip, gp, gi, fs, ist, gs, gf, fed, ys, holder, left_at,
     rec_i, rec_f, sp_i, sp_f, counts, siro, exps, c_i, c_f, stop_at,
@@ -460,14 +499,14 @@ def run_events(
     return gs[STATUS]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i, c_f, r, now, v):
     """Look at the candidates: pick one (claim it, start the approach) or take a NooP."""
-    n = _candidates(fp, fs, gp, fed, ys, holder, now, r, c_i, c_f)
+    n = _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f)
     fs[r, T0] = now
     if n == 0:
         counts[r, NOOP] += 1
-        wait = _next_entry(gp, fed, holder, now, fp[r, BA])
+        wait = _next_entry(gp, fed, holder, now, fp[r, BA], ist[r, HINT_HI])
         tick = gp[TICK]
         if tick < wait:
             wait = tick
@@ -490,7 +529,7 @@ def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i
     _schedule(fs, ist, gs, r, now + (t + fp[r, PICK]), NORMAL, PC_APPROACH)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def start_robots(fp, ip, fs, ist, gs, exps):
     """Robot.__init__ and Line start: first failures drawn, processes initialised in order."""
     for r in range(ist.shape[0]):
@@ -503,3 +542,14 @@ def start_robots(fp, ip, fs, ist, gs, exps):
             fs[r, NEXTFAIL] = _draw(fp, ip, ist, gs, exps, r, MTBF)
     for r in range(ist.shape[0]):
         _schedule(fs, ist, gs, r, 0.0, URGENT, PC_START)
+
+
+@njit(cache=True, error_model="numpy")
+def close_open_spans(ist, fs, gs, sp_i, sp_f, now):
+    """Recorder.close_open_spans: a wait or repair still under way at the end counts."""
+    for r in range(ist.shape[0]):
+        if ist[r, PC] == PC_HELD:
+            _span(gs, sp_i, sp_f, r, S_WAIT, fs[r, WAIT0], now)
+        elif ist[r, PC] == PC_DOWN:
+            _span(gs, sp_i, sp_f, r, S_DOWN, fs[r, DOWN0], now)
+    return gs[STATUS]

@@ -29,7 +29,8 @@ N_FS = 12
 # robot int state ist[r, .]
 PC, ACTIVE, WPRIO, WSEQ, CLAIMED, PART, DOWN, WAITING, EXPECTED = range(9)
 BINCOUNT, BOXES, EXPIDX = range(9, 12)
-N_IS = 12
+HINT_LO, HINT_HI, HINT_NE = range(12, 15)  # last answers of the robot's belt bisections
+N_IS = 15
 # line int state gs[.]
 SEQ, EPOCHS, SIROIDX, NSPANS, STATUS = range(5)
 N_GS = 5

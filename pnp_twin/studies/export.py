@@ -1,0 +1,104 @@
+"""A study folder as one Excel workbook: results, summary, paired and best as sheets.
+
+``export_xlsx(DIR, FILE)`` reads the folder's tables (``docs/study_format.md``) and writes
+them, one sheet each, with the unit of every column in its header, e.g.
+``gripping_rate_mean (%)``, ``throughput_mean (parts/s)``, ``robots.arm_speed (m/s)``.
+One unit convention throughout: the gripping rate, efficiency, utilisation and every other
+time share are percentages (the folder stores the shares as fractions; they are scaled by
+100 here and say so with ``(%)``). Nothing is simulated.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from pydantic import BaseModel
+
+from pnp_twin.studies.plan import StudyError
+from twin.output import atomic_path
+from twin.scenario import Scenario
+
+log = logging.getLogger(__name__)
+
+SHEETS = ("results", "summary", "paired", "best")
+STATS = r"(_mean|_ci_low|_ci_high)?"
+# (pattern over a column name, unit, factor to the unit)
+UNITS: list[tuple[str, str, float]] = [
+    (rf"gripping_rate{STATS}", "%", 1.0),
+    (rf"(efficiency|utilisation){STATS}", "%", 100.0),
+    (r"r\d+_(utilisation|noop|wait|blocked|down|availability)", "%", 100.0),
+    (rf"(throughput|part_flow|max_throughput){STATS}", "parts/s", 1.0),
+    (r"r\d+_(throughput|capacity|nominal_capacity)", "parts/s", 1.0),
+    (r"(r\d+_)?cycle_time_\w+", "s", 1.0),
+    (r"wall_time", "s", 1.0),
+    (r"parts_\w+|r\d+_(picks|passed_on|lost)|rule_\w+", "parts", 1.0),
+    (r"diff(_mean|_ci_low|_ci_high)", "points of G", 1.0),
+]
+
+
+def field_unit(path: str) -> str:
+    """The unit a dotted scenario path carries in the Scenario model, or ''."""
+    model: type[BaseModel] = Scenario
+    info = None
+    for key in path.split("."):
+        info = model.model_fields.get(key)
+        if info is None:
+            return ""
+        ann = info.annotation
+        if isinstance(ann, type) and issubclass(ann, BaseModel):
+            model = ann
+    extra = info.json_schema_extra if info is not None else None
+    return str(extra.get("unit", "")) if isinstance(extra, dict) else ""
+
+
+def with_units(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with shares scaled to % and the unit of each column in its header."""
+    out = frame.copy()
+    names = {}
+    for col in out.columns:
+        unit, factor = "", 1.0
+        for pattern, u, f in UNITS:
+            if re.fullmatch(pattern, str(col)):
+                unit, factor = u, f
+                break
+        else:
+            unit = field_unit(str(col)) if "." in str(col) else ""
+        if factor != 1.0:
+            out[col] = pd.to_numeric(out[col], errors="coerce") * factor
+        names[col] = f"{col} ({unit})" if unit else str(col)
+    return out.rename(columns=names)
+
+
+def read_sheet(folder: Path, stem: str) -> pd.DataFrame | None:
+    """``stem``.parquet, else ``stem``.csv of ``folder``; None when neither exists."""
+    for suffix, reader in ((".parquet", pd.read_parquet), (".csv", pd.read_csv)):
+        path = folder / f"{stem}{suffix}"
+        if path.is_file():
+            try:
+                frame: pd.DataFrame = reader(path)
+            except Exception as e:  # a broken table: one line naming it
+                raise StudyError(f"{path}: cannot read table ({type(e).__name__})") from None
+            return frame
+    return None
+
+
+def export_xlsx(folder: Path | str, out: Path | str) -> dict[str, Any]:
+    """Write the study in ``folder`` to the workbook ``out``; the sheets and their rows."""
+    folder, out = Path(folder), Path(out)
+    if not (folder / "meta.json").is_file():
+        raise StudyError(f"{folder}: no meta.json, so not a study folder (see pnp-twin sweep)")
+    if out.suffix.lower() != ".xlsx":
+        raise StudyError(f"--xlsx {out}: give a file name ending in .xlsx")
+    tables = {s: t for s in SHEETS if (t := read_sheet(folder, s)) is not None}
+    if "summary" not in tables:
+        raise StudyError(f"{folder}: summary.csv is missing; finish the study first")
+    with atomic_path(out) as tmp, pd.ExcelWriter(tmp, engine="openpyxl") as xl:
+        for name, table in tables.items():
+            with_units(table).to_excel(xl, sheet_name=name, index=False)
+            xl.sheets[name].freeze_panes = "A2"
+    log.info("exported %s to %s", folder, out)
+    return {name: len(t) for name, t in tables.items()}

@@ -1,0 +1,183 @@
+"""The report of one run (``pnp-twin run --report FILE.html``), from its record tables.
+
+The command simulates; this module only draws what the run recorded: the answer in one
+sentence, the KPI table, the robots (time shares, parts passed on and lost), the activity
+timeline, the belt animation and Welch's warm-up plot of this one replication.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from reports import record_figures, welch
+from reports.html import Page, Section, esc, render, table_html
+from reports.text import fmt_pct, fmt_seconds
+from twin.output import write_text
+
+TIMELINE_SECONDS = 20.0
+ANIMATION_SECONDS = 60.0
+ANIMATION_STEP = 0.2
+
+
+def run_headline(kpis: Mapping[str, Any]) -> str:
+    """'SD grips 72.3 % of the parts on this line; ...' in one sentence."""
+    robots = kpis.get("robots") or []
+    busiest = max(robots, key=lambda r: r["utilisation"], default=None)
+    out = (
+        f"With {kpis.get('policy')} the line grips {fmt_pct(kpis['gripping_rate'])} of the "
+        f"{kpis['parts_presented']} parts presented ({kpis['throughput']:.2f} of "
+        f"{kpis['part_flow']:.2f} parts/s), losing {kpis['parts_missed']} to the return "
+        f"conveyor; efficiency {fmt_pct(100 * kpis['efficiency'])}"
+    )
+    if busiest is not None:
+        out += f", robot {busiest['robot']} the busiest at {fmt_pct(100 * busiest['utilisation'])}"
+    return out + " (one run: no confidence interval; use a study for one)."
+
+
+def kpi_rows(kpis: Mapping[str, Any]) -> str:
+    """The line's KPIs as a two-column table, shares in %."""
+    rows = [
+        ("Gripping rate G", fmt_pct(kpis["gripping_rate"], 2)),
+        (
+            "Parts presented / picked / lost",
+            "{} / {} / {}".format(
+                kpis["parts_presented"], kpis["parts_picked"], kpis["parts_missed"]
+            ),
+        ),
+        ("Throughput / part flow", f"{kpis['throughput']:.3f} / {kpis['part_flow']:.3f} parts/s"),
+        (
+            "Efficiency",
+            fmt_pct(100 * kpis["efficiency"])
+            + " of min(part flow, robots' measured cycle rate: picks per busy second)",
+        ),
+        ("Utilisation (mean of the robots)", fmt_pct(100 * kpis["utilisation"])),
+        (
+            "Cycle time mean / p95",
+            f"{kpis['cycle_time_mean']:.3f} / {kpis['cycle_time_p95']:.3f} s",
+        ),
+    ]
+    body = "".join(f"<tr><th>{esc(k)}</th><td>{esc(v)}</td></tr>" for k, v in rows)
+    return f'<table class="facts"><tbody>{body}</tbody></table>'
+
+
+def robot_rows(kpis: Mapping[str, Any]) -> str:
+    """One row per robot, shares in %."""
+    header = ["Robot", "Workspace (m)", "Picks", "Utilisation (%)", "NooP (%)", "Down (%)"]
+    header += ["Availability (%)", "Passed on (parts)", "Lost (parts)"]
+    rows = []
+    for r in kpis.get("robots") or []:
+        a, b = r["workspace"]
+        rows.append(
+            [
+                str(r["robot"]),
+                f"{a:g}–{b:g}",
+                str(r["picks"]),
+                f"{100 * r['utilisation']:.1f}",
+                f"{100 * r['noop']:.1f}",
+                f"{100 * r['down']:.1f}",
+                f"{100 * r['availability']:.1f}",
+                str(r["passed_on"]),
+                str(r["lost"]),
+            ]
+        )
+    return table_html(header, rows, left=0)
+
+
+def build_run_page(
+    kpis: Mapping[str, Any],
+    parts: pd.DataFrame,
+    spans: pd.DataFrame,
+    scenario: Mapping[str, Any],
+    command: str = "",
+) -> Page:
+    """The one-run report as a Page."""
+    duration = float(scenario.get("duration") or kpis["window"][1])
+    warmup = float(scenario.get("warmup") or 0.0)
+    n = int((scenario.get("robots") or {}).get("count") or len(kpis.get("robots") or []))
+    t0 = warmup if duration - warmup >= TIMELINE_SECONDS else 0.0
+    t1 = min(t0 + TIMELINE_SECONDS, duration)
+    row = {k: v for k, v in kpis.items() if not isinstance(v, dict | list)}
+    for r in kpis.get("robots") or []:
+        row.update(
+            {f"r{r['robot']}_{k}": v for k, v in r.items() if k not in ("robot", "workspace")}
+        )
+    results = pd.DataFrame([row | {"policy": kpis.get("policy")}])
+    items: list[Any] = [record_figures.robots_figure(results, {}, str(kpis.get("policy")))]
+    records: list[Any] = []
+    if t1 > t0:
+        records.append(record_figures.timeline_figure(parts, spans, t0, t1, n))
+    if len(parts):
+        seconds = max(min(ANIMATION_SECONDS, duration - t0), ANIMATION_STEP)
+        records.append(
+            record_figures.belt_figure(parts, dict(scenario), t0, seconds, ANIMATION_STEP)
+        )
+    sections = [
+        Section(
+            "answer",
+            "The answer",
+            "",
+            [f'<div class="answer"><p>{esc(run_headline(kpis))}</p></div>'],
+        ),
+        Section(
+            "kpis",
+            "KPIs",
+            esc(f"Parts fed in [{warmup:g}, {duration:g}) s."),
+            [kpi_rows(kpis), robot_rows(kpis)],
+        ),
+        Section("robots", "Robots", "", items),
+        Section("run", "The run up close", "", records),
+    ]
+    series = pd.DataFrame({welch.COLUMN: [kpis.get(welch.COLUMN) or []]})
+    got = welch.welch_items(
+        series, duration, warmup, f"{kpis.get('policy')}, seed {kpis.get('seed')}"
+    )
+    if got is not None:
+        fig, text, drifting = got
+        box = f'<div class="{"warn" if drifting else "answer"}"><p>{esc(text)}</p></div>'
+        sections.append(
+            Section(
+                "warmup",
+                "Warm-up",
+                esc(
+                    "Welch's plot of this run's gripping rate over time; a study's "
+                    "replications give a steadier curve."
+                ),
+                [box, fig],
+            )
+        )
+    lead = esc(str(scenario.get("description") or ""))
+    if command:
+        lead += f" · <code>{esc(command)}</code>"
+    return Page(
+        title=f"{kpis.get('scenario')}: one run",
+        eyebrow="pnp-twin report<span class='badge'>run</span>",
+        lead=lead,
+        cards=[
+            ("Gripping rate", fmt_pct(kpis["gripping_rate"]), f"policy {kpis.get('policy')}"),
+            ("Throughput", f"{kpis['throughput']:.2f}", "parts/s"),
+            ("Robots", str(n), str(kpis.get("termination") or "")),
+            ("Simulated", fmt_seconds(duration), f"of which {warmup:g} s warm-up"),
+        ],
+        sections=[s for s in sections if s.items],
+        footer=esc("Generated by pnp-twin from one run · self-contained: opens offline."),
+    )
+
+
+def build_run_report(
+    kpis: Mapping[str, Any],
+    parts: pd.DataFrame,
+    spans: pd.DataFrame,
+    scenario: Mapping[str, Any],
+    out: Path | str,
+    command: str = "",
+) -> Path:
+    """Write the one-run report to ``out`` atomically; returns the path."""
+    page = build_run_page(kpis, parts, spans, scenario, command)
+    return write_text(render(page), out)
+
+
+__all__ = ["build_run_page", "build_run_report", "run_headline"]

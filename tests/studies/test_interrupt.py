@@ -1,0 +1,134 @@
+"""SIGKILL a study at several points, resume it: the same tables, nothing left behind.
+
+Each study runs in its own process session (``start_new_session``) so that every process
+it starts (forkserver, resource tracker, workers) can be found afterwards in /proc.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+
+ROOT = Path(__file__).resolve().parents[2]
+COMMON = ["paper_baseline", "--no-report", "--set", "sweep.warmup=5"]
+SWEEP = [
+    "sweep", *COMMON, "--replications", "3", "--policy", "SD", "--policy", "FIFO",
+    "--set", "sweep.grid={'feeder.rate': [8.0, 12.0]}", "--set", "sweep.duration=300",
+]  # fmt: skip
+SIZE = [
+    "size", *COMMON, "--target", "80", "--replications", "2", "--policy", "SD",
+    "--set", "sweep.grid={'robots.count': [2, 3]}", "--set", "sweep.duration=300",
+]  # fmt: skip
+TABLES = ("summary.csv", "paired.csv", "best.csv")
+
+
+def session_members(sid: int) -> list[int]:
+    """Live processes of session ``sid``."""
+    out = []
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            fields = Path(f"/proc/{d}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[3]) == sid and fields[0] not in ("Z", "X"):
+            out.append(int(d))
+    return out
+
+
+def cli(args: list[str], out: Path, **kw) -> subprocess.Popen[bytes]:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    cmd = [sys.executable, "-m", "pnp_twin", *args, "--out", str(out), "--workers", "2"]
+    return subprocess.Popen(
+        cmd, cwd=ROOT, env=env, start_new_session=True,
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **kw,
+    )  # fmt: skip
+
+
+def journaled(out: Path) -> int:
+    runs = out / "runs"
+    return len(list(runs.glob("*.json"))) if runs.is_dir() else 0
+
+
+def kill_after(args: list[str], out: Path, runs: int) -> None:
+    """Start a study and SIGKILL it once ``runs`` runs are journaled; check nothing stays."""
+    study = cli(args, out)
+    try:
+        deadline = time.monotonic() + 120
+        while journaled(out) < runs and study.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert study.poll() is None, "the study ended before it could be killed"
+        study.send_signal(signal.SIGKILL)
+        study.wait()
+        deadline = time.monotonic() + 10
+        while session_members(study.pid) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert session_members(study.pid) == [], "processes outlived the killed study"
+    finally:
+        for pid in session_members(study.pid):
+            os.kill(pid, signal.SIGKILL)
+        study.stderr.close()
+
+
+def resume(args: list[str], out: Path) -> dict:
+    study = cli(args, out)
+    _, err = study.communicate(timeout=300)
+    assert study.returncode == 0, err.decode()
+    assert session_members(study.pid) == []
+    assert not list(out.rglob("*.tmp")) and not (out / ".replaced").exists()
+    assert not (out / ".study.lock.json").exists()
+    return json.loads((out / "meta.json").read_text())
+
+
+def assert_same_tables(out: Path, reference: Path) -> None:
+    def results(folder: Path) -> pd.DataFrame:
+        return pd.read_parquet(folder / "results.parquet").drop(columns="wall_time")
+
+    pd.testing.assert_frame_equal(results(out), results(reference))
+    for name in TABLES:
+        assert (out / name).read_bytes() == (reference / name).read_bytes(), name
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """Uninterrupted sweep and size studies, in-process."""
+    from pnp_twin.cli import app
+
+    base = tmp_path_factory.mktemp("reference")
+    for args in (SWEEP, SIZE):
+        out = base / args[0]
+        result = CliRunner().invoke(app, [*args, "--out", str(out), "--workers", "1"])
+        assert result.exit_code == 0, result.output
+    return base
+
+
+@pytest.mark.parametrize(("kind", "runs"), [("sweep", 1), ("sweep", 6), ("sweep", 12)])
+def test_a_killed_sweep_resumes_to_the_same_tables(reference, tmp_path, kind, runs):
+    out = tmp_path / kind
+    kill_after(SWEEP, out, runs)
+    (out / ".results.parquet.0123456789ab.tmp").write_bytes(b"PAR1")  # a killed final write
+    meta = resume(SWEEP, out)
+    assert meta["runs_skipped"] >= runs and meta["runs_skipped"] + meta["runs_executed"] == 12
+    assert_same_tables(out, reference / kind)
+
+
+def test_a_killed_size_study_resumes_to_the_same_answer(reference, tmp_path):
+    out = tmp_path / "size"
+    kill_after(SIZE, out, 3)
+    meta = resume(SIZE, out)
+    assert meta["runs_skipped"] >= 3 and meta["runs_skipped"] + meta["runs_executed"] == 8
+    assert_same_tables(out, reference / "size")
+    sizing = json.loads((out / "sizing.json").read_text())
+    assert sizing == json.loads((reference / "size" / "sizing.json").read_text())
