@@ -130,6 +130,7 @@ def pool_map_ordered(
     pool_map(partial(_indexed, fn), list(enumerate(items)), keep, workers, preload)
     return results
 
+
 def import_ray() -> Any:
     """The ``ray`` module, or a one-line error naming the extra to install."""
     try:

@@ -14,7 +14,10 @@ Factory = Callable[[str], Policy]
 
 # Extra policy kinds by prefix, e.g. "hdqn:DIR": "module:function" entries, imported only
 # when a spec names them (the learned policy needs torch, the ``learn`` extra).
-PREFIXED: dict[str, str] = {"hdqn": "policies.hdqn.policy:from_spec"}
+PREFIXED: dict[str, str] = {
+    "hdqn": "policies.hdqn.policy:from_spec",
+    "sb3": "policies.sb3_policy:from_spec",
+}
 
 
 class PolicyError(UserError):

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
+from pydantic import ValidationError
 
 from reports.style import (
     PALETTE,
@@ -24,6 +25,8 @@ from reports.text import (
     at_point,
     point_label,
 )
+from twin.geometry import bin_position
+from twin.scenario import Scenario
 
 
 def robot_count(results: pd.DataFrame) -> int:
@@ -233,112 +236,24 @@ def belt_figure(
 ) -> go.Figure:
     """The belt seen from above at instant ``t``, workspaces and bins drawn, parts coloured
     by what happens to them; a play button and slider animate the next ``seconds``."""
-    belt = scenario.get("belt") or {}
-    length, width, speed = (
-        float(belt.get("length", 2.4)),
-        float(belt.get("width", 0.4)),
-        float(belt.get("speed", 0.8)),
-    )
-    fig = go.Figure(data=belt_traces(parts, speed, t))
-    shapes: list[dict[str, Any]] = [
-        {
-            "type": "rect",
-            "x0": 0,
-            "x1": length,
-            "y0": 0,
-            "y1": width,
-            "fillcolor": "#eef1f5",
-            "line": {"color": "#9aa5b1", "width": 1},
-            "layer": "below",
-        }
-    ]
-    for i, ((a, b), (bx, by)) in enumerate(workspace_layout(scenario), start=1):
-        color = PALETTE[(i - 1) % len(PALETTE)]
-        shapes.append(
-            {
-                "type": "rect",
-                "x0": a,
-                "x1": b,
-                "y0": 0,
-                "y1": width,
-                "fillcolor": rgba(color, 0.07),
-                "line": {"color": rgba(color, 0.8), "width": 1.5, "dash": "dot"},
-                "layer": "below",
-            }
-        )
-        half = 0.045
-        shapes.append(
-            {
-                "type": "rect",
-                "x0": bx - half,
-                "x1": bx + half,
-                "y0": by - half,
-                "y1": by + half,
-                "fillcolor": rgba(color, 0.25),
-                "line": {"color": color, "width": 1},
-            }
-        )
-        fig.add_annotation(
-            x=(a + b) / 2, y=by + half + 0.04, text=f"<b>R{i}</b> bin", showarrow=False
-        )
+    line = recorded_scenario(scenario)
+    belt, layout = line.belt, workspace_layout(line)
+    fig = go.Figure(data=belt_traces(parts, belt.speed, t))
     times = np.round(np.arange(t, t + seconds + 1e-9, step), 6)
     fig.frames = [
-        go.Frame(data=belt_traces(parts, speed, float(ti)), name=f"{ti:.1f}") for ti in times
+        go.Frame(data=belt_traces(parts, belt.speed, float(ti)), name=f"{ti:.1f}") for ti in times
     ]
-    slider_steps = [
-        {
-            "args": [
-                [f"{ti:.1f}"],
-                {"frame": {"duration": 0, "redraw": False}, "mode": "immediate"},
-            ],
-            "label": f"{ti:.1f}",
-            "method": "animate",
-        }
-        for ti in times
-    ]
-    play = {"frame": {"duration": int(step * 1000), "redraw": False}, "fromcurrent": True}
-    play["transition"] = {"duration": 0}
     fig.update_layout(
-        shapes=shapes,
-        updatemenus=[
-            {
-                "type": "buttons",
-                "showactive": False,
-                "direction": "left",
-                "x": 0,
-                "y": -0.22,
-                "xanchor": "left",
-                "yanchor": "top",
-                "buttons": [
-                    {"label": "▶ Play", "method": "animate", "args": [None, play]},
-                    {
-                        "label": "❚❚ Pause",
-                        "method": "animate",
-                        "args": [[None], {"frame": {"duration": 0}, "mode": "immediate"}],
-                    },
-                ],
-            }
-        ],
-        sliders=[
-            {
-                "steps": slider_steps,
-                "x": 0.16,
-                "len": 0.84,
-                "y": -0.16,
-                "yanchor": "top",
-                "currentvalue": {
-                    "prefix": "t = ",
-                    "suffix": " s",
-                    "font": {"size": 13, "color": "#1d2733"},
-                },
-                "font": {"color": "rgba(0,0,0,0)"},  # 50 step labels would overprint
-                "ticklen": 3,
-                "pad": {"t": 0},
-            }
-        ],
+        shapes=belt_shapes(belt.length, belt.width, layout),
+        updatemenus=[play_buttons(step)],
+        sliders=[time_slider(times)],
     )
-    top = max((by for _, (_, by) in workspace_layout(scenario)), default=width) + 0.12
-    fig.update_xaxes(title="Along the belt, x (m)", range=[-0.05, length + 0.05])
+    for i, ((a, b), (_, by)) in enumerate(layout, start=1):
+        fig.add_annotation(
+            x=(a + b) / 2, y=by + BIN_HALF + 0.04, text=f"<b>R{i}</b> bin", showarrow=False
+        )
+    top = max((by for _, (_, by) in layout), default=belt.width) + 0.12
+    fig.update_xaxes(title="Along the belt, x (m)", range=[-0.05, belt.length + 0.05])
     fig.update_yaxes(title="Across, y (m)", range=[-0.05, top], showgrid=False, zeroline=False)
     fig = style(
         fig,
@@ -351,26 +266,126 @@ def belt_figure(
     return fig
 
 
-def workspace_layout(
-    scenario: dict[str, Any],
-) -> list[tuple[tuple[float, float], tuple[float, float]]]:
-    """((a, b), bin position) per robot from a scenario dict, as the twin lays them out."""
-    robots = scenario.get("robots") or {}
-    width = float((scenario.get("belt") or {}).get("width", 0.4))
-    n = int(robots.get("count", 4))
-    if robots.get("workspaces"):
-        spaces = [(float(a), float(b)) for a, b in robots["workspaces"]]
-    else:
-        a = float(robots.get("first_workspace_start", 0.3))
-        size, gap = (
-            float(robots.get("workspace_length", 0.5)),
-            float(robots.get("workspace_gap", 0)),
+BIN_HALF = 0.045  # m, half the side of a bin's square in the belt figure
+
+
+def belt_shapes(
+    length: float,
+    width: float,
+    layout: list[tuple[tuple[float, float], tuple[float, float]]],
+) -> list[dict[str, Any]]:
+    """The belt, each robot's workspace (dotted) and its bin, as plotly layout shapes."""
+    shapes: list[dict[str, Any]] = [
+        {
+            "type": "rect",
+            "x0": 0,
+            "x1": length,
+            "y0": 0,
+            "y1": width,
+            "fillcolor": "#eef1f5",
+            "line": {"color": "#9aa5b1", "width": 1},
+            "layer": "below",
+        }
+    ]
+    for i, ((a, b), (bx, by)) in enumerate(layout):
+        color = PALETTE[i % len(PALETTE)]
+        shapes.append(
+            {
+                "type": "rect",
+                "x0": a,
+                "x1": b,
+                "y0": 0,
+                "y1": width,
+                "fillcolor": rgba(color, 0.07),
+                "line": {"color": rgba(color, 0.8), "width": 1.5, "dash": "dot"},
+                "layer": "below",
+            }
         )
-        spaces = [(a + i * (size + gap), a + i * (size + gap) + size) for i in range(n)]
-    offsets = {int(o["robot"]): o.get("bin_offset") for o in robots.get("overrides") or []}
-    default = robots.get("bin_offset") or (0.0, 0.2)
-    out = []
-    for i, (a, b) in enumerate(spaces, start=1):
-        dx, dy = offsets.get(i) or default
-        out.append(((a, b), ((a + b) / 2 + float(dx), width + float(dy))))
-    return out
+        shapes.append(
+            {
+                "type": "rect",
+                "x0": bx - BIN_HALF,
+                "x1": bx + BIN_HALF,
+                "y0": by - BIN_HALF,
+                "y1": by + BIN_HALF,
+                "fillcolor": rgba(color, 0.25),
+                "line": {"color": color, "width": 1},
+            }
+        )
+    return shapes
+
+
+def play_buttons(step: float) -> dict[str, Any]:
+    """The play / pause buttons of the belt animation (one frame per ``step`` seconds)."""
+    play = {"frame": {"duration": int(step * 1000), "redraw": False}, "fromcurrent": True}
+    play["transition"] = {"duration": 0}
+    return {
+        "type": "buttons",
+        "showactive": False,
+        "direction": "left",
+        "x": 0,
+        "y": -0.22,
+        "xanchor": "left",
+        "yanchor": "top",
+        "buttons": [
+            {"label": "▶ Play", "method": "animate", "args": [None, play]},
+            {
+                "label": "❚❚ Pause",
+                "method": "animate",
+                "args": [[None], {"frame": {"duration": 0}, "mode": "immediate"}],
+            },
+        ],
+    }
+
+
+def time_slider(times: np.ndarray) -> dict[str, Any]:
+    """The slider over the animation's frames, one step per instant of ``times``."""
+    steps = [
+        {
+            "args": [
+                [f"{ti:.1f}"],
+                {"frame": {"duration": 0, "redraw": False}, "mode": "immediate"},
+            ],
+            "label": f"{ti:.1f}",
+            "method": "animate",
+        }
+        for ti in times
+    ]
+    return {
+        "steps": steps,
+        "x": 0.16,
+        "len": 0.84,
+        "y": -0.16,
+        "yanchor": "top",
+        "currentvalue": {
+            "prefix": "t = ",
+            "suffix": " s",
+            "font": {"size": 13, "color": "#1d2733"},
+        },
+        "font": {"color": "rgba(0,0,0,0)"},  # 50 step labels would overprint
+        "ticklen": 3,
+        "pad": {"t": 0},
+    }
+
+
+def recorded_scenario(scenario: dict[str, Any]) -> Scenario:
+    """The scenario a run recorded (its ``model_dump``), validated again; a record that no
+    longer validates falls back to its belt and robots sections (defaults for the rest)."""
+    try:
+        return Scenario.model_validate(scenario)
+    except ValidationError:
+        sections = {k: scenario[k] for k in ("belt", "robots") if k in scenario}
+        return Scenario.model_validate(sections)
+
+
+def workspace_layout(
+    scenario: Scenario | dict[str, Any],
+) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+    """((a, b), bin position) per robot, as the twin lays them out (:mod:`twin.geometry`)."""
+    if isinstance(scenario, dict):
+        scenario = recorded_scenario(scenario)
+    width = scenario.belt.width
+    return [
+        (space, bin_position(space, width, scenario.robot_param(i, "bin_offset")))
+        for i, space in enumerate(scenario.robots.layout(), start=1)
+    ]

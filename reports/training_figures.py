@@ -63,6 +63,26 @@ def learning_figure(run: TrainingRun) -> go.Figure:
         row_heights=[0.42, 0.58],
         subplot_titles=["Reward per step", "Gripping rate"],
     )
+    _reward_traces(fig, log)
+    shown = _episode_traces(fig, log)
+    if run.eval is not None:
+        shown += _validation_traces(fig, run.eval, log)
+    rollout = run.meta.get("targets") == "rollout"
+    fig.update_yaxes(title="Reward / step", row=1, col=1)
+    fig.update_yaxes(title="G (%)", ticksuffix=" %", row=2, col=1)
+    fig.update_xaxes(title="Labelled decisions" if rollout else "Training steps", row=2, col=1)
+    if shown:
+        low, high = min(shown), max(shown)
+        pad = max(0.5, 0.08 * (high - low))
+        fig.update_yaxes(range=[max(0.0, low - pad), min(101.0, high + pad)], row=2, col=1)
+    fig = style(fig, f"Learning curves: {run.mode}", _learning_subtitle(run), height=560, top=110)
+    fig.update_layout(legend={"y": -0.12, "yanchor": "top", "x": 0, "xanchor": "left"})
+    fig.update_layout(margin={"b": 100})
+    return fig
+
+
+def _reward_traces(fig: go.Figure, log: pd.DataFrame) -> None:
+    """The logged reward per step and its rolling mean (top panel)."""
     fig.add_trace(
         go.Scatter(
             x=log["step"],
@@ -87,98 +107,91 @@ def learning_figure(run: TrainingRun) -> go.Figure:
         row=1,
         col=1,
     )
-    lows: list[float] = []
-    highs: list[float] = []
-    if "gripping_rate" in log.columns:
-        ep = episode_rates(log)
-        fig.add_trace(
-            go.Scatter(
-                x=ep["step"],
-                y=ep["gripping_rate"],
-                mode="markers",
-                name="Training episode",
-                marker={"color": rgba(PALETTE[2], 0.45), "size": 5},
-                hovertemplate="step %{x:,}<br>episode G %{y:.1f} %<extra></extra>",
-            ),
-            row=2,
-            col=1,
-        )
-        lows += ep["gripping_rate"].tolist()
-        highs += ep["gripping_rate"].tolist()
-    ev = run.eval
-    if ev is not None:
-        fig.add_trace(
-            go.Scatter(
-                x=ev["step"],
-                y=ev["gripping_rate"],
-                mode="lines+markers",
-                name="Validation (HDQN, greedy)",
-                line={"color": HDQN_COLOR, "width": 2.5},
-                marker={"size": 7},
-                hovertemplate="step %{x:,}<br>validation G %{y:.2f} %<extra></extra>",
-            ),
-            row=2,
-            col=1,
-        )
-        lows += ev["gripping_rate"].tolist()
-        highs += ev["gripping_rate"].tolist()
-        best = ev.loc[ev["gripping_rate"].idxmax()]
-        fig.add_trace(
-            go.Scatter(
-                x=[best["step"]],
-                y=[best["gripping_rate"]],
-                mode="markers",
-                name="Best checkpoint",
-                marker={"color": HDQN_COLOR, "size": 15, "symbol": "star"},
-                hovertemplate="best checkpoint: step %{x:,}, G %{y:.2f} %<extra></extra>",
-            ),
-            row=2,
-            col=1,
-        )
-        if "best_rule_gripping_rate" in ev.columns:
-            ref = float(ev["best_rule_gripping_rate"].iloc[-1])
-            name = str(ev["best_rule"].iloc[-1]) if "best_rule" in ev.columns else "best rule"
-            x = [
-                float(min(ev["step"].min(), log["step"].min() if len(log) else math.inf)),
-                float(max(ev["step"].max(), log["step"].max() if len(log) else -math.inf)),
-            ]
-            fig.add_trace(
-                go.Scatter(
-                    x=x,
-                    y=[ref, ref],
-                    mode="lines",
-                    name=f"{name}, best rule (validation)",
-                    line={"color": RULE_COLOR, "width": 2, "dash": "dash"},
-                    hovertemplate=f"{esc(name)}: G %{{y:.2f}} %<extra></extra>",
-                ),
-                row=2,
-                col=1,
-            )
-            lows.append(ref)
-            highs.append(ref)
-    fig.update_yaxes(title="Reward / step", row=1, col=1)
-    fig.update_yaxes(title="G (%)", ticksuffix=" %", row=2, col=1)
-    rollout = run.meta.get("targets") == "rollout"
-    fig.update_xaxes(title="Labelled decisions" if rollout else "Training steps", row=2, col=1)
-    if lows:
-        low, high = min(lows), max(highs)
-        pad = max(0.5, 0.08 * (high - low))
-        fig.update_yaxes(range=[max(0.0, low - pad), min(101.0, high + pad)], row=2, col=1)
+
+
+def _episode_traces(fig: go.Figure, log: pd.DataFrame) -> list[float]:
+    """Each training episode's gripping rate (bottom panel); the values drawn."""
+    if "gripping_rate" not in log.columns:
+        return []
+    ep = episode_rates(log)
+    fig.add_trace(
+        go.Scatter(
+            x=ep["step"],
+            y=ep["gripping_rate"],
+            mode="markers",
+            name="Training episode",
+            marker={"color": rgba(PALETTE[2], 0.45), "size": 5},
+            hovertemplate="step %{x:,}<br>episode G %{y:.1f} %<extra></extra>",
+        ),
+        row=2,
+        col=1,
+    )
+    return list(ep["gripping_rate"].tolist())
+
+
+def _validation_traces(fig: go.Figure, ev: pd.DataFrame, log: pd.DataFrame) -> list[float]:
+    """Validation rounds, the best checkpoint and the best rule's line; the values drawn."""
+    fig.add_trace(
+        go.Scatter(
+            x=ev["step"],
+            y=ev["gripping_rate"],
+            mode="lines+markers",
+            name="Validation (HDQN, greedy)",
+            line={"color": HDQN_COLOR, "width": 2.5},
+            marker={"size": 7},
+            hovertemplate="step %{x:,}<br>validation G %{y:.2f} %<extra></extra>",
+        ),
+        row=2,
+        col=1,
+    )
+    shown = list(ev["gripping_rate"].tolist())
+    best = ev.loc[ev["gripping_rate"].idxmax()]
+    fig.add_trace(
+        go.Scatter(
+            x=[best["step"]],
+            y=[best["gripping_rate"]],
+            mode="markers",
+            name="Best checkpoint",
+            marker={"color": HDQN_COLOR, "size": 15, "symbol": "star"},
+            hovertemplate="best checkpoint: step %{x:,}, G %{y:.2f} %<extra></extra>",
+        ),
+        row=2,
+        col=1,
+    )
+    if "best_rule_gripping_rate" not in ev.columns:
+        return shown
+    ref = float(ev["best_rule_gripping_rate"].iloc[-1])
+    name = str(ev["best_rule"].iloc[-1]) if "best_rule" in ev.columns else "best rule"
+    x = [
+        float(min(ev["step"].min(), log["step"].min() if len(log) else math.inf)),
+        float(max(ev["step"].max(), log["step"].max() if len(log) else -math.inf)),
+    ]
+    fig.add_trace(
+        go.Scatter(
+            x=x,
+            y=[ref, ref],
+            mode="lines",
+            name=f"{name}, best rule (validation)",
+            line={"color": RULE_COLOR, "width": 2, "dash": "dash"},
+            hovertemplate=f"{esc(name)}: G %{{y:.2f}} %<extra></extra>",
+        ),
+        row=2,
+        col=1,
+    )
+    return [*shown, ref]
+
+
+def _learning_subtitle(run: TrainingRun) -> str:
+    """What was validated, how often, on how many seeds."""
     args = run.meta.get("train_args") or {}
+    if not args:
+        return run.label
     every = args.get("eval_every")
-    if rollout:  # rollout targets: no reward curve, one validation per round of episodes
+    if run.meta.get("targets") == "rollout":  # one validation per round of episodes
         cadence = f"after every {args.get('round_episodes', '?')} labelled episodes"
     else:
         cadence = f"every {every:,} steps" if isinstance(every, int) else "periodically"
-    subtitle = (
-        f"{run.label} · validation {cadence} on {args.get('eval_seeds', '?')} held-out seeds"
-        if args
-        else run.label
-    )
-    fig = style(fig, f"Learning curves: {run.mode}", subtitle, height=560, top=110)
-    fig.update_layout(legend={"y": -0.12, "yanchor": "top", "x": 0, "xanchor": "left"})
-    fig.update_layout(margin={"b": 100})
-    return fig
+    return f"{run.label} · validation {cadence} on {args.get('eval_seeds', '?')} held-out seeds"
 
 
 def rule_shares(rules: pd.DataFrame) -> pd.DataFrame:

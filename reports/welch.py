@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -36,14 +37,26 @@ def series_matrix(values: Any) -> np.ndarray:
 
 
 def moving_average(x: np.ndarray, window: int) -> np.ndarray:
-    """Welch's centred moving average; near the start the window shrinks (as Welch's)."""
+    """Welch's centred moving average: near the start the window shrinks, and the last
+    ``window`` bins, which a centred window cannot cover, are left out (NaN), as Welch's."""
     out = np.full(len(x), np.nan)
-    for i in range(len(x)):
-        w = min(window, i, len(x) - 1 - i)
+    for i in range(len(x) - window):
+        w = min(window, i)
         part = x[i - w : i + w + 1]
         if np.isfinite(part).any():
             out[i] = float(np.nanmean(part))
     return out
+
+
+def two_halves(a: Any, b: Any) -> tuple[float, float, float]:
+    """mean(b) - mean(a) with a 95 % normal-approximation interval (Welch's standard error)."""
+    x, y = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    x, y = x[np.isfinite(x)], y[np.isfinite(y)]
+    if len(x) < 2 or len(y) < 2:
+        return math.nan, math.nan, math.nan
+    d = float(y.mean() - x.mean())
+    se = math.sqrt(float(x.var(ddof=1)) / len(x) + float(y.var(ddof=1)) / len(y))
+    return d, d - 1.96 * se, d + 1.96 * se
 
 
 def analyse(
@@ -53,17 +66,22 @@ def analyse(
     reps, bins = matrix.shape
     width = duration / bins
     t = (np.arange(bins) + 0.5) * width
-    with np.errstate(all="ignore"):
+    with warnings.catch_warnings():  # a bin no part was fed in, in any replication
+        warnings.simplefilter("ignore", RuntimeWarning)
         mean = np.nanmean(matrix, axis=0) if reps else np.full(bins, np.nan)
     window = max(1, bins // 12)
     after = np.flatnonzero(t >= warmup)
     first, second = np.array_split(after, 2) if len(after) >= 2 else (after, after[:0])
-    with np.errstate(all="ignore"):
-        diffs = np.nanmean(matrix[:, second], axis=1) - np.nanmean(matrix[:, first], axis=1)
-    d, low, high = t_interval(diffs.tolist(), confidence) if reps else (math.nan,) * 3
-    drifting = bool(
-        math.isfinite(low) and (low > 0 or high < 0) and abs(d) >= DRIFT_POINTS
-    ) or bool(reps == 1 and math.isfinite(d) and abs(d) >= 2 * DRIFT_POINTS)
+    if reps >= 2:  # paired by replication
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            diffs = np.nanmean(matrix[:, second], axis=1) - np.nanmean(matrix[:, first], axis=1)
+        d, low, high = t_interval(diffs.tolist(), confidence)
+    else:  # one run: the two halves' bins as two samples (normal approximation)
+        d, low, high = two_halves(
+            matrix[0, first] if reps else [], matrix[0, second] if reps else []
+        )
+    drifting = bool(math.isfinite(low) and (low > 0 or high < 0) and abs(d) >= DRIFT_POINTS)
     return {
         "t": t,
         "mean": mean,
@@ -80,10 +98,11 @@ def note(a: dict[str, Any], warmup: float) -> str:
     d = a["drift"]
     if not math.isfinite(d["change"]):
         return f"Warm-up {warmup:g} s; too few parts to judge the drift after it."
+    kind = "paired " if a["replications"] >= 2 else ""
     ci = (
-        f" (paired 95 % CI {d['ci_low']:+.2f} to {d['ci_high']:+.2f})"
+        f" ({kind}95 % CI {d['ci_low']:+.2f} to {d['ci_high']:+.2f})"
         if math.isfinite(d["ci_low"])
-        else " (one replication: no interval)"
+        else ""
     )
     change = f"G changes by {d['change']:+.2f} points from the first to the second half of the "
     change += f"measured window{ci}"

@@ -28,10 +28,10 @@ class Belt:
     :attr:`arrived`. Parts are indexed in feeding order, so positions decrease with the
     index and the parts inside any stretch [x_lo, x_hi] form one index range (bisection).
 
-    Robots go through :meth:`claim` (which also books the grip) and :meth:`release`. ``holder[i]`` is the
-    robot that claimed or picked part i, or FREE; ``left_at[i]`` the time a claimed part is
-    (or will be) gripped and leaves the belt. A part not gripped when it passes ``end`` (the
-    end of the last workspace) is missed: the process :meth:`conveying` records it.
+    Robots go through :meth:`claim` (which also books the grip) and :meth:`release`.
+    ``holder[i]`` is the robot that claimed or picked part i, or FREE; ``left_at[i]`` the
+    time a claimed part is (or will be) gripped and leaves the belt. A part not gripped when
+    it passes ``end`` (the end of the last workspace) is missed: :meth:`conveying` records it.
     """
 
     def __init__(

@@ -4,7 +4,8 @@ A run holds its whole part stream and its records in memory, so its cost grows w
 parts it feeds: about ``feeder.rate x duration`` (a trace: its rows before ``duration``).
 Measured on the paper baseline (``pnp-twin run paper_baseline --set duration=60000``:
 600,000 parts, 6.7 s wall time, 540 MB peak resident memory on one core), a part costs
-about :data:`BYTES_PER_PART` bytes and :data:`SECONDS_PER_PART` seconds.
+about :data:`BYTES_PER_PART` bytes and :data:`SECONDS_PER_PART` seconds; the 600 s baseline
+run with SD processes 19,484 SimPy events for 5,986 parts, :data:`EVENTS_PER_PART`.
 
 Above :data:`MAX_PARTS` parts in one run, or :data:`MAX_RUNS` runs in one study, the
 command line refuses with one line saying how to go ahead (``--force``); the limits are
@@ -26,6 +27,7 @@ MAX_RUNS = 100_000  # runs in one study
 BYTES_PER_PART = 700.0
 BASE_BYTES = 180e6  # the interpreter, numpy, pandas, simpy
 SECONDS_PER_PART = 1.2e-5
+EVENTS_PER_PART = 3.3
 FORCE = "or pass --force to run it anyway"
 
 
@@ -41,9 +43,17 @@ class RunEstimate:
     memory_bytes: float
     seconds: float
 
+    @property
+    def events(self) -> float:
+        """Simulation events, about :data:`EVENTS_PER_PART` per part."""
+        return EVENTS_PER_PART * self.parts
+
     def describe(self) -> str:
-        """``about 6.0e+06 parts, 4.2 GB, 1.2 min`` (for messages and logs)."""
-        return f"about {self.parts:.2g} parts, {_bytes(self.memory_bytes)}, {_time(self.seconds)}"
+        """``about 6e+06 parts (2e+07 events), 4.2 GB, 1.2 min`` (for messages and logs)."""
+        return (
+            f"about {self.parts:.2g} parts ({self.events:.2g} events), "
+            f"{_bytes(self.memory_bytes)}, {_time(self.seconds)}"
+        )
 
 
 def _bytes(n: float) -> str:
@@ -75,9 +85,7 @@ def check_run(scenario: Scenario, force: bool = False, trace_rows: int | None = 
     if force or est.parts <= MAX_PARTS:
         return
     f = scenario.feeder
-    how = (
-        f"{scenario.duration:g} s at {f.rate:g} parts/s" if f.arrival != "trace" else "the trace"
-    )
+    how = f"{scenario.duration:g} s at {f.rate:g} parts/s" if f.arrival != "trace" else "the trace"
     raise BudgetError(
         f"duration: one run feeds {how}: {est.describe()}; the limit is {MAX_PARTS:,} parts "
         f"per run; shorten duration or lower feeder.rate, {FORCE}"

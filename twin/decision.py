@@ -64,10 +64,7 @@ class Decision:
         return len(self.parts)
 
     def __repr__(self) -> str:
-        return (
-            f"Decision(robot={self.robot}, time={self.time:.4f}, "
-            f"candidates={len(self.parts)})"
-        )
+        return f"Decision(robot={self.robot}, time={self.time:.4f}, candidates={len(self.parts)})"
 
 
 @runtime_checkable

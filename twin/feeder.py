@@ -62,7 +62,9 @@ class Feeder:
     def seeded(cls, scenario: Scenario, seed: int) -> Feeder:
         """The feeder of a run of ``scenario`` with master ``seed`` (its first two child
         streams, as :class:`twin.line.Line` spawns them)."""
-        arrivals, lateral = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+        arrivals, lateral = (
+            np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2)
+        )
         return cls(scenario.feeder, scenario.belt.width, arrivals, lateral, scenario.source_dir)
 
     def feeding(self, env: simpy.Environment, belt: Belt) -> Generator[simpy.Event, Any, None]:

@@ -17,6 +17,7 @@ has set the policy's answer. Without it, decisions cost no extra event under t_c
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Protocol
 
 import simpy
@@ -56,7 +57,7 @@ class Gateway:
         self.policy = policy
         self.recorder = recorder
         self.hold = hold
-        self.robots: list[Station] = []
+        self.robots: Sequence[Station] = []
         self.waiting: dict[int, simpy.Event] = {}  # robot index -> its release event
         self.expected: set[int] = set()  # t_any: robots the open epoch waits for
         self.pending: list[int] = []  # robots of the epoch the driver must answer

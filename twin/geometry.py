@@ -7,6 +7,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TypeVar
+
+import numpy as np
+
+Times = TypeVar("Times", float, np.ndarray)
 
 
 def workspaces(
@@ -37,8 +42,9 @@ def bin_position(
     return ((a + b) / 2.0 + dx, belt_width + dy)
 
 
-def exit_time(fed_at: float, end: float, speed: float) -> float:
-    """When a part fed at ``fed_at`` passes x = ``end`` (the end of the last workspace)."""
+def exit_time(fed_at: Times, end: float, speed: float) -> Times:
+    """When a part fed at ``fed_at`` passes x = ``end`` (the end of the last workspace);
+    elementwise for an array of feeding times."""
     return fed_at + end / speed
 
 

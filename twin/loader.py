@@ -200,19 +200,34 @@ def _unit(loc: Sequence[Any]) -> str:
     return f" {unit}" if isinstance(unit, str) and unit != "1" else ""
 
 
+def _is_tag(part: Any) -> bool:
+    """A location part pydantic adds for a validator or a union member, not a field name."""
+    text = str(part)
+    return "[" in text or "(" in text or text.startswith("function-") or text in TAGS
+
+
+TAGS = {"constrained-int", "constrained-float", "constrained-str", "int", "float", "str"}
+
+
 def _format_error(e: ValidationError) -> str:
     err = e.errors()[0]
-    parts = [p for p in err["loc"] if not str(p).startswith("function-after")]
+    parts = [p for p in err["loc"] if not _is_tag(p)]
     loc = ".".join(str(p) for p in parts)
     msg = err["msg"].removeprefix("Value error, ")
-    if err["type"] == "extra_forbidden":
+    kind = err["type"]
+    if kind == "extra_forbidden":
         if loc in INTERNAL:
             return f"{loc}: not a scenario field; {INTERNAL[loc]}"
         return f"{loc}: unknown key; check the spelling (see `pnp-twin schema`)"
-    if err["type"] == "model_type" or not loc or msg.split(":", 1)[0].count(".") >= 1:
+    bad = excerpt(err.get("input"))
+    if kind in ("model_type", "model_attributes_type", "dict_type"):
+        return f"{loc}: {bad} is not allowed; {loc} is a section of fields (see `pnp-twin schema`)"
+    if kind == "string_pattern_mismatch":
+        return f"{loc}: {bad} is not allowed; give one line of text (no control characters)"
+    if not loc or msg.split(":", 1)[0].count(".") >= 1:
         return f"{loc + ': ' if loc and not msg.startswith(loc) else ''}{msg}"
     unit = _unit(parts) if msg[-1:].isdigit() else ""
-    return f"{loc}: {excerpt(err.get('input'))} is not allowed; {msg.lower()}{unit}"
+    return f"{loc}: {bad} is not allowed; {msg.lower()}{unit}"
 
 
 def validate(data: Mapping[str, Any], source_dir: str | None = None) -> Scenario:

@@ -30,6 +30,8 @@ from pydantic import (
     model_validator,
 )
 
+from twin.geometry import workspaces
+
 
 def _integral(value: Any) -> Any:
     """numpy integers and whole floats (``4.0``) as int; anything else as it is."""
@@ -51,9 +53,18 @@ SEED_MAX = 2**63 - 1
 NO_CONTROL = r"^[^\x00-\x1f\x7f]*$"  # one-line text: no newlines or other control characters
 
 
-def num(default: Any, unit: str, description: str, **bounds: float) -> Any:
+def num(
+    default: Any,
+    unit: str,
+    description: str,
+    *,
+    gt: float | None = None,
+    ge: float | None = None,
+    le: float | None = None,
+) -> Any:
     """A numeric field with its unit (shown in the schema and in error messages)."""
-    return Field(default, description=description, json_schema_extra={"unit": unit}, **bounds)
+    extra: dict[str, Any] = {"unit": unit}
+    return Field(default, description=description, json_schema_extra=extra, gt=gt, ge=ge, le=le)
 
 
 class Frozen(BaseModel):

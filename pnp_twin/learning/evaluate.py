@@ -98,12 +98,11 @@ def compare(
     tuning_seeds: int = 3,
     confidence: float = 0.95,
 ) -> Comparison:
-    """Compare the HDQN in folder ``hdqn`` with every rule and the best mix on ``seeds`` seeds.
+    """Compare the HDQN in folder ``hdqn`` (or an ``sb3:MODEL.zip`` spec) with every rule
+    and the best mix on ``seeds`` seeds.
 
     ``duration`` and ``termination`` override the scenario's for every policy alike.
     """
-    from policies.hdqn.policy import HDQNPolicy
-
     changes: dict[str, object] = {}
     if duration is not None:
         changes.update(duration=duration, warmup=min(scenario.warmup, duration / 5.0))
@@ -114,9 +113,8 @@ def compare(
     if mix is None:
         tuning = [TUNING_SEED_BASE + i for i in range(tuning_seeds)]
         mix = search_mix(line, tuning)
-    trained = HDQNPolicy.load(hdqn)
-    reference = f"HDQN ({trained.mode})"
-    makers: dict[str, Callable[[], Policy]] = {reference: lambda: HDQNPolicy.load(hdqn)}
+    reference, make_trained = trained_policy(hdqn)
+    makers: dict[str, Callable[[], Policy]] = {reference: make_trained}
     for r in [*RULES, mix]:
         makers[r if r in RULES else f"mix {r}"] = partial(make_policy, r)
     g = {name: gripping_rates(line, make, seed_list) for name, make in makers.items()}
@@ -148,6 +146,16 @@ def compare(
     return Comparison(table, runs, mix, seed_list, reference, line)
 
 
+def trained_policy(trained: str | Path) -> tuple[str, Callable[[], Policy]]:
+    """The name and a fresh-policy maker of an HDQN folder or an ``sb3:MODEL.zip`` spec."""
+    spec = str(trained)
+    if spec.startswith("sb3:"):
+        return make_policy(spec).name, partial(make_policy, spec)
+    from policies.hdqn.policy import HDQNPolicy
+
+    return f"HDQN ({HDQNPolicy.load(trained).mode})", partial(HDQNPolicy.load, trained)
+
+
 def verdict(comparison: Comparison) -> dict[str, bool]:
     """Per policy: does the HDQN beat it with the paired CI entirely above zero?"""
     t = comparison.table
@@ -168,9 +176,7 @@ def policy_kind(name: str, reference: str) -> str:
 def rule_counts(scenario: Scenario, hdqn: str | Path, seed: int) -> pd.DataFrame:
     """How often the HDQN chose each rule per robot in one run: robot, rule, count
     (``NooP`` counts the decisions with no candidate, where no rule was asked)."""
-    from policies.hdqn.policy import HDQNPolicy
-
-    decisions = simulate(scenario, HDQNPolicy.load(hdqn), seed=seed).decisions
+    decisions = simulate(scenario, trained_policy(hdqn)[1](), seed=seed).decisions
     counts = decisions[["robot", "rule", "count"]].copy()
     counts["robot"] = counts["robot"].astype(int)  # the records number robots from 1
     return counts.sort_values(["robot", "rule"]).reset_index(drop=True)
@@ -185,6 +191,7 @@ def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) 
     """
     from policies.hdqn.checkpoint import read_meta
 
+    mode = "sb3" if str(hdqn).startswith("sb3:") else read_meta(hdqn).get("mode", "")
     line = comparison.scenario
     if line is None:
         raise ValueError("write_evaluation needs a comparison made by compare()")
@@ -194,7 +201,7 @@ def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) 
     table = pd.DataFrame(
         {
             "scenario": line.name,
-            "mode": read_meta(hdqn).get("mode", ""),
+            "mode": mode,
             "termination": line.termination,
             "duration": line.duration,
             "policy": runs["policy"],

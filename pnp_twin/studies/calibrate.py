@@ -346,6 +346,26 @@ def calibrate(
 def near_optimal(
     line: Sequence[tuple[float, float]], best: float, margin: float = 1.0
 ) -> tuple[float, float]:
-    """The span of profile values whose objective is within ``margin`` of ``best``."""
-    ok = [v for v, o in line if o <= best + margin]
-    return (min(ok), max(ok)) if ok else (math.nan, math.nan)
+    """The span around the profile's minimum where the objective stays within ``margin`` of
+    ``best``, its ends interpolated linearly between profile points (a span that reaches
+    the profile's end is cut there: the parameter is at best that well determined)."""
+    pts = sorted(line)
+    if not pts:
+        return math.nan, math.nan
+    level = best + margin
+    c = min(range(len(pts)), key=lambda i: pts[i][1])
+
+    def crossing(i: int, j: int) -> float:  # pts[i] is within the level, pts[j] is above it
+        (vi, oi), (vj, oj) = pts[i], pts[j]
+        return vi + (vj - vi) * (level - oi) / (oj - oi) if oj != oi else vi
+
+    lo, hi = pts[0][0], pts[-1][0]
+    for j in range(c - 1, -1, -1):
+        if pts[j][1] > level:
+            lo = crossing(j + 1, j)
+            break
+    for j in range(c + 1, len(pts)):
+        if pts[j][1] > level:
+            hi = crossing(j - 1, j)
+            break
+    return lo, hi

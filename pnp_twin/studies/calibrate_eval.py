@@ -18,6 +18,7 @@ import hashlib
 import json
 import logging
 from collections.abc import Sequence
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -149,6 +150,11 @@ class Evaluator:
                     keep(execute(spec))
         except StudyError:
             raise
+        except BrokenProcessPool:
+            raise StudyError(
+                "a worker process ended abruptly (killed, or out of memory); rerun the same "
+                "command to resume from the journal, or use --workers 1"
+            ) from None
         except Exception as e:  # a line the twin cannot run is the user's point, not a crash
             log.debug("simulation failed", exc_info=True)
             where = labels[0] if len(labels) == 1 else f"one of {', '.join(labels)}"

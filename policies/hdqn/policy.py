@@ -145,4 +145,3 @@ def from_spec(arg: str) -> HDQNPolicy:
     if not arg:
         raise CheckpointError("policy: hdqn needs a folder, e.g. hdqn:runs/paper_baseline")
     return HDQNPolicy.load(arg)
-

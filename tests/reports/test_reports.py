@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
+from html import escape as html_escape
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from plotly.offline import get_plotlyjs
@@ -19,7 +22,17 @@ from reports import (
     record_figures,
     render_report,
 )
-from reports.text import fmt_pct, fmt_pm, key_findings, reference_point, sizing_text
+from reports import welch
+from reports.text import (
+    fmt_pct,
+    fmt_pm,
+    headline,
+    key_findings,
+    mix_headline,
+    reference_point,
+    size_headline,
+    sizing_text,
+)
 from tests.study_fixture import make_study
 
 
@@ -169,8 +182,8 @@ def test_report_html_is_self_contained(grid3d: Path) -> None:
     html = render_report(grid3d)
     js = get_plotlyjs()
     assert html.count(js[:2000]) == 1  # plotly.js inlined exactly once
-    assert html.count("Plotly.newPlot(") == 8
-    assert 'content="8"' in html
+    assert html.count("Plotly.newPlot(") == 9  # 8 study figures and the warm-up plot
+    assert 'content="9"' in html
     assert "<script src" not in html and "cdn." not in html.replace(js, "")
     assert "@import" not in html and "fonts.googleapis" not in html
     for heading in ("What was run", "Heatmaps", "Policy comparison", "Robots", "KPI summary"):
@@ -201,7 +214,7 @@ def test_single_point_single_policy_study(tmp_path: Path) -> None:
     titles = [s.title for s in page.sections]
     assert "Gripping rate against each parameter" not in titles
     assert "Heatmaps" not in titles and "Policy comparison" not in titles
-    assert page.figures == 3  # robots, timeline, belt: never an empty chart
+    assert page.figures == 4  # robots, timeline, belt, warm-up: never an empty chart
     assert key_findings(study)[0].startswith("Highest mean gripping rate")
     assert reference_point(study) == {}
 
@@ -213,7 +226,7 @@ def test_mix_report_ranks_the_mixes(mix2: Path) -> None:
     table = html[html.index("<table", html.index('id="mix"')) :]
     table = table[: table.index("</table>")]
     assert table.count("<tr") == 1 + 4  # header and every mix
-    assert "<th class=\"l\">Robot 1</th><th class=\"l\">Robot 2</th>" in table
+    assert '<th class="l">Robot 1</th><th class="l">Robot 2</th>' in table
     rows = table.split("<tr")[2:]
     for rank, (row, r) in enumerate(zip(rows, mix["ranked"], strict=True), start=1):
         assert f">{rank}</td>" in row
@@ -237,3 +250,125 @@ def test_not_a_study_folder_is_one_line(tmp_path: Path) -> None:
     with pytest.raises(ReportError) as e:
         load_study(tmp_path)
     assert "cannot read JSON" in str(e.value)
+
+
+def answer_of(html: str) -> str:
+    """The first sentence of the page: the answer box that opens the report."""
+    start = html.index('<section id="answer">')
+    assert start < html.index("<section id=", start + 1) or True
+    first = html[start:].split('<div class="answer"><p>', 1)[1]
+    return first.split("</p>", 1)[0]
+
+
+def test_every_report_opens_with_its_answer(sweep3: Path, sizing: Path, mix2: Path) -> None:
+    for folder in (sweep3, sizing, mix2):
+        html = render_report(folder)
+        sections = re.findall(r'<section id="(\w+)"', html)
+        assert sections[0] == "answer", (folder, sections)
+        assert answer_of(html) == html_escape(headline(load_study(folder)))
+
+
+def test_sweep_answer_names_the_best_policy_where_it_matters(grid3d: Path) -> None:
+    study = load_study(grid3d)
+    text = headline(study)
+    wins = study.best["policy"].value_counts()
+    assert text.startswith(f"{wins.index[0]} is the best policy at {wins.iloc[0]} of 8 grid points")
+    assert "the middle of the grid (arm speed 2 m/s, part flow 10 parts/s, belt speed 0.6" in text
+    assert "; at the hardest point (" in text and "95 % CI" in text
+
+
+def test_size_answer_is_n_robots_g_with_ci_and_the_rule_of_thumb(sizing: Path) -> None:
+    data = json.loads((sizing / "sizing.json").read_text())
+    text = size_headline(data)
+    n = data["answer"]
+    row = next(r for r in data["rows"] if r["robots.count"] == n and r["robots.mtbf"] == 0)
+    assert text.startswith(f"{n} robots reach G ≥ 45 % with 95 % confidence: G = ")
+    assert f"{row['gripping_rate_mean']:.1f} % (95 % CI {row['ci_low']:.1f} to" in text
+    assert text.endswith(f"the rule of thumb says {data['rule_of_thumb']['n_recommended']}.")
+
+
+def test_mix_answer_says_when_the_two_best_cannot_be_told_apart(mix2: Path) -> None:
+    mix = json.loads((mix2 / "mix.json").read_text())
+    best, second = mix["ranked"][0]["mix"], mix["ranked"][1]["mix"]
+    tied = dict(mix, margin=dict(mix["margin"], ci_low=-0.3, ci_high=0.5, distinguishable=False))
+    text = mix_headline(tied)
+    assert text.startswith(f"Best rule mix: {best} (robot 1 first), G = ")
+    assert f"cannot be told apart from {second}" in text and "paired 95 % CI -0.30 to 0.50" in text
+    assert "points ahead" not in text
+    apart = dict(
+        mix,
+        margin=dict(mix["margin"], diff_mean=1.2, ci_low=0.4, ci_high=2.0, distinguishable=True),
+    )
+    assert f"1.20 points ahead of {second} (paired 95 % CI 0.40 to 2.00)" in mix_headline(apart)
+
+
+def test_size_report_states_the_target_used_and_draws_the_layout(sizing: Path) -> None:
+    html = render_report(sizing)
+    lead = html.split('<p class="lead">', 1)[1].split("</p>", 1)[0]
+    assert lead.startswith("Target used: gripping rate ≥ 45 % with 95 % confidence · layout extend")
+    data = json.loads((sizing / "sizing.json").read_text())
+    fig = figures.layout_figure(data)
+    rects = [s for s in fig.layout.shapes if s.type == "rect"]
+    counts = data["layout"]["counts"]
+    assert len(rects) == sum(1 + len(c["workspaces"]) for c in counts.values())
+    assert "Layout: extend" in fig.layout.title.text
+    assert "Layout: extend." in html
+
+
+def test_robots_and_the_run_up_close_show_the_recommended_line(sizing: Path) -> None:
+    study = load_study(sizing)
+    answer = study.sizing["answer"]
+    point, policy = layout.showcase_point(study)
+    assert point["robots.count"] == answer and point["robots.mtbf"] == 0
+    assert study.run is not None and study.run["scenario"]["robots"]["count"] == answer
+
+
+def test_names_are_never_cut_mid_word() -> None:
+    names = ", ".join(["SPT,SPT,SPT,FIFO", "SD,SD,SD,SD", "LIFO,LIFO,LIFO,LIFO"] * 3)
+    short = layout.shorten(names, 60)
+    assert len(short) <= 62 and short.endswith(" …")
+    kept = short[:-2].split(", ")
+    assert all(k in names.split(", ") for k in kept)
+
+
+def test_the_belt_says_will_be_missed_and_animates_a_minute(sweep3: Path) -> None:
+    study = load_study(sweep3)
+    html = render_report(sweep3)
+    assert "will be missed" in html and '"name":"missed"' not in html
+    page = layout.build_page(study)
+    belt = next(i for s in page.sections for i in s.items if getattr(i, "frames", None))
+    times = [float(f.name) for f in belt.frames]
+    assert times[0] == 10.0 and times[-1] == pytest.approx(60.0)  # the run ends at 60 s
+
+
+def test_print_css_lets_every_row_onto_paper(grid3d: Path) -> None:
+    html = render_report(grid3d)
+    css = html.split("@media print {", 1)[1]
+    assert ".scroll { max-height:none !important; overflow:visible !important;" in css
+    assert "thead { display:table-header-group; }" in css
+
+
+def test_welch_plot_marks_the_warm_up_and_flags_a_drift() -> None:
+    t_bins = 60
+    steady = np.tile(np.full(t_bins, 70.0), (5, 1)) + np.random.default_rng(0).normal(
+        0, 1, (5, t_bins)
+    )
+    a = welch.analyse(steady, 600.0, 60.0)
+    assert not a["drift"]["drifting"] and "looks long enough" in welch.note(a, 60.0)
+    rising = steady + np.linspace(0, 6, t_bins)  # G still climbs 6 points over the run
+    b = welch.analyse(rising, 600.0, 60.0)
+    assert b["drift"]["drifting"] and b["drift"]["change"] > 2
+    assert welch.note(b, 60.0).startswith("Warning: G is still drifting after the 60 s warm-up")
+    fig = welch.welch_figure(b, 60.0, 600.0, "SD")
+    assert any(s.x0 == 60.0 and s.x1 == 60.0 for s in fig.layout.shapes)  # the marker
+    smooth = welch.moving_average(np.arange(10.0), 2)
+    assert (
+        smooth[:8].tolist() == pytest.approx([0, 1, 2, 3, 4, 5, 6, 7])
+        and np.isnan(smooth[8:]).all()
+    )
+
+
+def test_every_study_report_has_a_welch_plot(sweep3: Path, sizing: Path, mix2: Path) -> None:
+    for folder in (sweep3, sizing, mix2):
+        html = render_report(folder)
+        assert '<section id="warmup">' in html and "Welch" in html, folder

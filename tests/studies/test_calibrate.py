@@ -190,3 +190,13 @@ def test_shipped_paper_targets_load() -> None:
     assert t.kpis == ("gripping_rate",)
     assert [v[0] for v in t.values] == [2.0, 3.0, 4.0]
     assert t.target[:, 0].tolist() == [47.0, 72.0, 82.0]
+
+
+def test_near_optimal_span_is_interpolated_around_the_minimum() -> None:
+    from pnp_twin.studies.calibrate import near_optimal
+
+    line = [(0.0, 9.0), (1.0, 1.0), (2.0, 0.0), (3.0, 4.0)]
+    lo, hi = near_optimal(line, best=0.0, margin=2.0)
+    assert lo == pytest.approx(1.0 - 1.0 / 8.0)  # 1 -> 9 crosses 2 an eighth of the way
+    assert hi == pytest.approx(2.5)
+    assert near_optimal([(0.0, 0.0), (1.0, 0.5)], best=0.0) == (0.0, 1.0)  # flat: whole span

@@ -218,3 +218,13 @@ def test_a_killed_fresh_start_is_settled_on_the_next_open(plan, tmp_path):
     assert j.load(spec) is None and j.load(plan.specs()[1]) is not None
     assert not (tmp_path / REPLACED).exists()
     j.close()
+
+
+def test_the_scenarios_sweep_section_only_counts_through_the_plan(plan, tmp_path):
+    d = definition(plan)
+    d["scenario"] = {**d["scenario"], "sweep": {"replications": 2}}
+    Journal(tmp_path, d).close()
+    d = definition(plan.with_replications(4))
+    d["scenario"] = {**d["scenario"], "sweep": {"replications": 4}}
+    Journal(tmp_path, d).close()  # more replications: the same study
+    assert json.loads((tmp_path / "study.json").read_text())["replications"] == 4

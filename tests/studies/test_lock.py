@@ -1,8 +1,13 @@
-"""A study folder has one writer: a second study into a held --out is refused at once."""
+"""A study folder has one writer: a second study into a held --out is refused at once.
+
+The first study is paused (SIGSTOP) while it holds the lock, so the test does not depend on
+how fast the machine runs it; it is resumed (SIGCONT) afterwards and must finish whole.
+"""
 
 from __future__ import annotations
 
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -21,7 +26,7 @@ def sweep_args(out: Path) -> list[str]:
         "--workers", "1", "--no-report", "--replications", "4",
         "--policy", "SD", "--policy", "FIFO",
         "--set", "sweep.grid={'feeder.rate': [8.0, 10.0, 12.0]}",
-        "--set", "sweep.duration=400", "--set", "sweep.warmup=5",
+        "--set", "sweep.duration=100", "--set", "sweep.warmup=5",
     ]  # fmt: skip
 
 
@@ -40,6 +45,7 @@ def test_a_second_study_into_a_held_folder_is_refused_and_the_first_finishes(tmp
         while not (out / ".study.lock.json").exists() and time.monotonic() < deadline:
             assert first.poll() is None, first.communicate()
             time.sleep(0.05)
+        first.send_signal(signal.SIGSTOP)  # it holds the lock, however fast this machine is
         seconds = []
         for extra in ([], ["--fresh"]):  # a plain rerun, and one that would wipe the folder
             t0 = time.monotonic()
@@ -52,11 +58,13 @@ def test_a_second_study_into_a_held_folder_is_refused_and_the_first_finishes(tmp
             assert lines[0].startswith(f"error: --out {out}: in use by pid {first.pid} on ")
             assert socket.gethostname() in lines[0] and "(pnp-twin sweep paper_baseline" in lines[0]
             assert " since 20" in lines[0] and "wait for it to finish" in lines[0]
-        assert first.poll() is None, "the first study ended before the second was refused"
+        assert first.poll() is None
+        first.send_signal(signal.SIGCONT)
         _, err = first.communicate(timeout=300)
         assert first.returncode == 0, err
     finally:
         if first.poll() is None:
+            first.send_signal(signal.SIGCONT)
             first.kill()
             first.wait()
     df = pd.read_parquet(out / "results.parquet")

@@ -124,3 +124,18 @@ def test_run_ids_are_file_safe_and_distinct():
     assert run_id(3, "SPT,SPT,SPT,FIFO", 1) == "p003-SPT-SPT-SPT-FIFO-r01"
     a, b = run_id(0, "hdqn:runs/a", 0), run_id(0, "hdqn:runs-a", 0)
     assert a != b and "/" not in a and ":" not in a
+
+
+def test_auto_replications_start_small_and_define_the_study_as_auto(line):
+    sweep = {"replications": "auto", "half_width": 0.5, "max_replications": 12}
+    sc = with_overrides(line, {f"sweep.{k}": v for k, v in sweep.items()})
+    plan = build_plan(sc, grid={"feeder.rate": [8.0]}, policies=["SD"])
+    assert plan.replications == 3 and plan.precision is not None
+    assert (plan.precision.half_width, plan.precision.max_replications) == (0.5, 12)
+    d = plan.definition()
+    assert d["replications"] == "auto" and d["precision"]["half_width"] == 0.5
+    more = plan.with_replications(7)
+    assert more.definition() == d  # a later round is the same study
+    assert [s.seed for s in more.specs()][:3] == [s.seed for s in plan.specs()]
+    capped = build_plan(with_overrides(sc, {"sweep.max_replications": 2}), grid={})
+    assert capped.replications == 2  # the first round never passes the maximum

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import pytest
 from typer.testing import CliRunner
@@ -245,7 +246,7 @@ def test_whole_floats_and_numpy_integers_are_whole_numbers() -> None:
     assert validate({"robots": {"count": np.int64(2)}}).robots.count == 2
 
 
-CONFLICTS = {
+CONFLICTS: dict[str, tuple[dict[str, Any], str]] = {
     "trace with poisson": ({"feeder.trace": "t.csv"}, "feeder.trace: given, but"),
     "mean with uniform": (
         {"feeder.lateral": "uniform", "feeder.lateral_mean": 0.2},

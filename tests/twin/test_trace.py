@@ -27,7 +27,7 @@ def write(tmp_path: Path, text: str | bytes, name: str = "t.csv") -> Path:
     return path
 
 
-BAD = {
+BAD: dict[str, tuple[str | bytes, list[str]]] = {
     "empty file": ("", ["is empty", "header"]),
     "header only": ("time,y\n", ["header but no rows"]),
     "no header": ("0.5,0.1\n0.7,0.2\n", ["line 1", "header", "time, y"]),
@@ -40,7 +40,10 @@ BAD = {
     "nan time": ("time,y\n0.1,0.2\nnan,0.1\n", ["line 3", "time nan", "not a finite"]),
     "inf y": ("time,y\n0.1,inf\n", ["line 2", "y inf", "not a finite"]),
     "negative time": ("time,y\n-1,0.2\n", ["line 2", "negative"]),
-    "out of order": ("time,y\n2,0.2\n1,0.1\n", ["line 3", "before the row above", "non-decreasing"]),
+    "out of order": (
+        "time,y\n2,0.2\n1,0.1\n",
+        ["line 3", "before the row above", "non-decreasing"],
+    ),
     "off the belt": ("time,y\n0.5,0.9\n", ["line 2", "y 0.9", "outside the belt", "0..0.4"]),
     "below the belt": ("time,y\n0.5,0.1\n0.6,-0.01\n", ["line 3", "outside the belt"]),
     "long kind": ("time,y,kind\n0.5,0.1," + "k" * 100 + "\n", ["line 2", "kind", "64"]),
@@ -94,8 +97,7 @@ def test_small_times_are_not_offset(tmp_path: Path) -> None:
 def scenario_file(tmp_path: Path, trace: str, duration: float, warmup: float = 1.0) -> Path:
     path = tmp_path / "line.yaml"
     path.write_text(
-        "feeder: {arrival: trace, trace: t.csv}\n"
-        f"duration: {duration}\nwarmup: {warmup}\n",
+        f"feeder: {{arrival: trace, trace: t.csv}}\nduration: {duration}\nwarmup: {warmup}\n",
         encoding="utf-8",
     )
     write(tmp_path, trace)

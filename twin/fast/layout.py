@@ -29,7 +29,8 @@ N_FS = 12
 # robot int state ist[r, .]
 PC, ACTIVE, WPRIO, WSEQ, CLAIMED, PART, DOWN, WAITING, EXPECTED = range(9)
 BINCOUNT, BOXES, EXPIDX = range(9, 12)
-HINT_LO, HINT_HI, HINT_NE = range(12, 15)  # last answers of the robot's belt bisections
+HINT_LO, HINT_HI = range(12, 14)  # last answers of the robot's belt bisections
+MASK = 14  # scratch: the robots of a decision epoch being opened
 N_IS = 15
 # line int state gs[.]
 SEQ, EPOCHS, SIROIDX, NSPANS, STATUS = range(5)

@@ -80,9 +80,9 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
       time-based limit, so that episodes under different policies cover the same horizon).
 
     ``gymnasium.make("pnp_twin/PickPlace-v0")`` registers the paper's cap of 5000 steps in
-    its spec (``env.spec.max_episode_steps``; Gymnasium's TimeLimit applies it, override it
-    with ``gymnasium.make(..., max_episode_steps=M)``, or ``None`` for none). A directly
-    built ``PickPlaceEnv`` has no step cap unless given one. With the paper's 5000 steps a
+    its spec (``env.spec.max_episode_steps``; Gymnasium's TimeLimit applies it; change it
+    with ``gymnasium.make(..., max_episode_steps=M)``). A directly built ``PickPlaceEnv``
+    has no step cap unless given one. With the paper's 5000 steps a
     600 s paper_baseline episode usually ends by the cap (near 520-560 simulated s,
     depending on the policy): give ``max_episode_steps=None`` and ``max_episode_time`` (or a
     shorter ``duration`` override) for equal horizons. Calling :meth:`step` after the end
