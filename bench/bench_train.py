@@ -40,6 +40,7 @@ def train_rate(mode: str, steps: int, device: str, scenario: str) -> tuple[float
             device=device,
             learning_starts=500,
             eval_every=10**9,  # no evaluation inside the timing (one at the end)
+            checkpoint_every=10**9,  # nor checkpoints (one at the end)
             eval_seeds=2,
             eval_duration=10.0,
         )

@@ -1,25 +1,38 @@
-"""Same seed, same results across a refactor: runs the command line of two checkouts side by
-side and compares what they write, byte for byte.
+"""Same seed, same results across a refactor: runs two checkouts side by side and compares
+what they produce.
 
-    python bench/same_results.py --before REF          # REF: a git commit (default: the
-                                                       # commit before the layers move)
+    python bench/same_results.py [--before REF] [--keep DIR]
+    # REF: a git commit (default: the commit before the layers move, issue 8)
 
-For each shipped scenario: ``run --json`` (wall time removed), ``--events`` and ``--spans``;
-then a short sweep's ``results.csv`` / ``summary.csv`` / ``paired.csv``; then a short training
-run's ``model.safetensors``. The "before" tree is a temporary git worktree of REF; each side
-runs in its own interpreter with only its own tree on ``sys.path``.
+Compared, each side in its own interpreter with only its own tree on ``PYTHONPATH``:
+
+- for each shipped scenario, ``run --json`` (timings removed), ``--events`` and ``--spans``;
+- ``run paper_baseline --policy hdqn:models/...`` with each shipped checkpoint (events);
+- a short sweep's ``results.csv`` / ``summary.csv`` / ``paired.csv`` / ``best.csv``;
+- the learning interface: observations and rewards of the epoch driver under all three
+  termination schemes, and one episode's rollout labels;
+- a short training run's ``model.safetensors``.
+
+Each output gets one verdict: ``identical`` (the same bytes); ``same values`` (every value
+both sides have is equal, once robots are numbered alike: only columns or keys were added,
+removed or renamed); or ``DIFFERENT`` with the columns or keys whose values differ. Other
+issues may change output formats or redefine a KPI on purpose, so a ``DIFFERENT`` names what
+to check; the part records (``--events``) and state spans (``--spans``) are the simulation
+itself. The exit code is 0 only when nothing is ``DIFFERENT``.
 """
 
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import shutil
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
+
+import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYERS_MOVE_PARENT = "485900e"  # main before the one-way layers move (issue 8)
@@ -32,20 +45,53 @@ SCENARIOS = [
     "sizing_example",
     "rule_mix",
 ]
+CHECKPOINTS = ["async", "async_rollout", "single", "sync"]
 VOLATILE = ("wall_time", "wall_s", "elapsed", "started_at", "finished_at", "created", "versions")
+
+# The learning interface, run in each tree (module paths moved with the layers).
+LEARNING_PROBE = """
+import hashlib, numpy as np
+try:
+    from pnp_twin.learning.envs.driver import EpochDriver
+    from pnp_twin.learning.rollout import LabelSettings, label_episode
+except ImportError:
+    from twin.envs.driver import EpochDriver
+    from policies.hdqn.rollout import LabelSettings, label_episode
+from twin import load_scenario
+h = hashlib.sha256()
+for term in ("t_continue", "t_all", "t_any"):
+    d = EpochDriver("paper_baseline", channels=3, termination=term,
+                    overrides={"duration": 20.0, "warmup": 5.0})
+    deciding, rng = d.reset(3), np.random.default_rng(0)
+    while not d.done:
+        for r in deciding:
+            h.update(d.observe(r).tobytes() + d.observe(None).tobytes())
+            h.update(repr(d.reward(r)).encode())
+        deciding = d.act({r: int(rng.integers(5)) for r in deciding})
+    h.update(repr(d.gripping_rate()).encode())
+print("driver", h.hexdigest())
+lab = label_episode(load_scenario("paper_baseline"), 7,
+                    LabelSettings(episode_time=6.0, window=(3.0, 4.0), futures=2))
+print("labels", hashlib.sha256(lab.obs.tobytes() + lab.robot.tobytes()
+                               + lab.advantage.tobytes()).hexdigest())
+"""
 
 
 def cli_module(tree: Path) -> str:
     return "pnp_twin" if (tree / "pnp_twin" / "__main__.py").is_file() else "twin"
 
 
-def cli(tree: Path, args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
+def python(tree: Path, args: list[str], cwd: Path) -> str:
+    """stdout of ``python ARGS`` with only ``tree`` on the path; stop on failure."""
     env = {"PYTHONPATH": str(tree), "PATH": str(Path(sys.executable).parent), "HOME": str(cwd)}
-    cmd = [sys.executable, "-m", cli_module(tree), *args]
-    out = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    out = subprocess.run([sys.executable, *args], cwd=cwd, env=env, capture_output=True, text=True)
     if out.returncode != 0:
-        raise SystemExit(f"{tree}: {' '.join(args)} failed:\n{out.stderr[-2000:]}")
-    return out
+        raise SystemExit(f"{tree}: {' '.join(args)[:200]} failed:\n{out.stderr[-2000:]}")
+    return out.stdout
+
+
+def cli(tree: Path, args: list[str], cwd: Path) -> str:
+    return python(tree, ["-m", cli_module(tree), *args], cwd)
 
 
 def scrub(value: object) -> object:
@@ -57,36 +103,105 @@ def scrub(value: object) -> object:
     return value
 
 
-def digest(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-
-
-def outputs(tree: Path, work: Path) -> dict[str, str]:
-    """name -> digest of every compared output of one checkout."""
-    found: dict[str, str] = {}
+def outputs(tree: Path, work: Path) -> dict[str, Path]:
+    """name -> file of every compared output of one checkout (written under ``work``)."""
+    found: dict[str, Path] = {}
+    short = ["--set", "duration=120", "--set", "warmup=20"]
     for name in SCENARIOS:
-        ev, sp = work / f"{name}.events.csv", work / f"{name}.spans.csv"
-        args = ["run", name, "--json", "--events", str(ev), "--spans", str(sp)]
-        text = cli(tree, args + ["--set", "duration=120", "--set", "warmup=20"], work).stdout
-        kpis = json.dumps(scrub(json.loads(text)), sort_keys=True)
-        found[f"run {name} --json"] = hashlib.sha256(kpis.encode()).hexdigest()[:16]
-        found[f"run {name} --events"] = digest(ev)
-        found[f"run {name} --spans"] = digest(sp)
+        ev, sp, js = (work / f"{name}.{k}" for k in ("events.csv", "spans.csv", "json"))
+        text = cli(
+            tree, ["run", name, "--json", "--events", str(ev), "--spans", str(sp), *short], work
+        )
+        js.write_text(json.dumps(scrub(json.loads(text)), sort_keys=True, indent=1))
+        found[f"run {name} --json"], found[f"run {name} --events"] = js, ev
+        found[f"run {name} --spans"] = sp
+    for ck in CHECKPOINTS:
+        ev = work / f"hdqn_{ck}.events.csv"
+        policy = f"hdqn:{ROOT / 'models' / f'paper_baseline__{ck}'}"
+        cli(tree, ["run", "paper_baseline", "--policy", policy, "--events", str(ev), *short], work)
+        found[f"run --policy hdqn {ck} --events"] = ev
     study = work / "sweep"
     sweep = ["sweep", "paper_27", "--out", str(study), "--set", "sweep.replications=2"]
     cli(tree, sweep + ["--set", "sweep.duration=60", "--set", "sweep.warmup=10"], work)
     for table in ("results.csv", "summary.csv", "paired.csv", "best.csv"):
-        found[f"sweep paper_27 {table}"] = digest(study / table)
+        found[f"sweep paper_27 {table}"] = study / table
+    for line in python(tree, ["-c", LEARNING_PROBE], work).splitlines():
+        key, value = line.split()
+        (work / f"learning_{key}.txt").write_text(value + "\n")
+        found[f"learning interface {key} digest"] = work / f"learning_{key}.txt"
     train = ["train", "paper_baseline", "--out", str(work / "train"), "--steps", "600"]
     cli(tree, train + ["--eval-every", "300", "--eval-seeds", "2", "--device", "cpu"], work)
     (model,) = sorted((work / "train").glob("*/model.safetensors"))
-    found["train async 600 steps model.safetensors"] = digest(model)
+    found["train async 600 steps model.safetensors"] = model
     return found
+
+
+def flat(value: Any, prefix: str = "") -> dict[str, Any]:
+    """A JSON value as {dotted.path: leaf}."""
+    if isinstance(value, dict):
+        return {
+            k: v for key, item in value.items() for k, v in flat(item, f"{prefix}{key}.").items()
+        }
+    if isinstance(value, list):
+        return {
+            k: v for i, item in enumerate(value) for k, v in flat(item, f"{prefix}{i}.").items()
+        }
+    return {prefix[:-1]: value}
+
+
+def renumbered(before: pd.DataFrame, after: pd.DataFrame) -> pd.DataFrame:
+    """``before`` with its robot column numbered as ``after``'s (from 0 or from 1)."""
+    if "robot" not in before or "robot" not in after:
+        return before
+    b, a = pd.to_numeric(before["robot"]), pd.to_numeric(after["robot"])
+    shift = int(a.min() - b.min()) if len(a) and len(b) else 0
+    if shift:
+        before = before.copy()
+        before["robot"] = (b + shift).astype("Int64").astype(str).replace("<NA>", "")
+    return before
+
+
+def compare_values(before: Path, after: Path) -> tuple[str, list[str]]:
+    """(verdict, what differs) of two outputs that are not byte-identical."""
+    if before.suffix == ".json":
+        b, a = flat(json.loads(before.read_text())), flat(json.loads(after.read_text()))
+    elif before.suffix == ".csv":
+        bt = pd.read_csv(before, dtype=str, keep_default_na=False)
+        at = pd.read_csv(after, dtype=str, keep_default_na=False)
+        if len(bt) != len(at):
+            return "DIFFERENT", [f"{len(bt)} rows before, {len(at)} after"]
+        bt = renumbered(bt, at)
+        b = {c: bt[c].tolist() for c in bt.columns}
+        a = {c: at[c].tolist() for c in at.columns}
+    else:
+        return "DIFFERENT", ["bytes"]
+    changed = sorted(k for k in set(b) & set(a) if b[k] != a[k])
+    if changed:
+        return "DIFFERENT", changed
+    only = [f"-{k}" for k in sorted(set(b) - set(a))] + [f"+{k}" for k in sorted(set(a) - set(b))]
+    return "same values", only
+
+
+def report(old: dict[str, Path], new: dict[str, Path]) -> int:
+    """Print one verdict per output; the number of DIFFERENT ones."""
+    bad = 0
+    print(f"{'output':<46} verdict")
+    for key, before in old.items():
+        after = new[key]
+        if before.read_bytes() == after.read_bytes():
+            verdict, notes = "identical", []
+        else:
+            verdict, notes = compare_values(before, after)
+        bad += verdict == "DIFFERENT"
+        more = f" ({', '.join(notes[:8])}{', ...' if len(notes) > 8 else ''})" if notes else ""
+        print(f"{key:<46} {verdict}{more}")
+    return bad
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--before", default=LAYERS_MOVE_PARENT, help="git commit to compare")
+    parser.add_argument("--keep", type=Path, help="copy both sides' outputs to this folder")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         before = Path(tmp) / "before"
@@ -97,23 +212,26 @@ def main() -> None:
             capture_output=True,
         )
         try:
-            results = []
+            sides = []
             for label, tree in (("before", before), ("after", ROOT)):
                 work = Path(tmp) / f"work_{label}"
                 work.mkdir()
-                results.append(outputs(tree, work))
+                sides.append(outputs(tree, work))
+            bad = report(*sides)
+            if args.keep:
+                for label in ("before", "after"):
+                    shutil.copytree(
+                        Path(tmp) / f"work_{label}", args.keep / label, dirs_exist_ok=True
+                    )
         finally:
             subprocess.run(["git", "worktree", "remove", "--force", str(before)], cwd=ROOT)
             shutil.rmtree(before, ignore_errors=True)
-    old, new = results
-    same = 0
-    print(f"{'output':<44} {'before':<17} {'after':<17} same")
-    for key in old:
-        ok = old[key] == new.get(key)
-        same += ok
-        print(f"{key:<44} {old[key]:<17} {new.get(key, '-'):<17} {'yes' if ok else 'NO'}")
-    print(f"{same} of {len(old)} outputs identical (before = {args.before}, after = working tree)")
-    sys.exit(0 if same == len(old) else 1)
+    n = len(sides[0])
+    print(
+        f"{n - bad} of {n} outputs have the same values "
+        f"(before = {args.before}, after = working tree)"
+    )
+    sys.exit(0 if bad == 0 else 1)
 
 
 if __name__ == "__main__":

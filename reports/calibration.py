@@ -304,7 +304,12 @@ def build_calibration_page(info: dict[str, Any]) -> Page:
             str(len(info["params"])),
             f"fitted to {len({r['point'] for r in info['points']})} points",
         ),
-        ("wall time", f"{info['wall_time']:.0f} s", f"{info['evaluations']} evaluations"),
+        (
+            "wall time",
+            f"{info['wall_time']:.0f} s",
+            f"this run: {info['simulated_points']} points simulated, "
+            f"{info['replayed_points']} replayed",
+        ),
     ]
     sections = [
         Section(

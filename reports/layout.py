@@ -58,10 +58,22 @@ def shown_policies(study: Study, limit: int = MAX_POLICIES) -> list[str]:
 
 
 def showcase_point(study: Study) -> tuple[dict[str, Any], str]:
-    """The grid point and policy the per-robot figures describe: the recorded run's when the
-    folder has records, else the reference point and its best policy."""
+    """The grid point and policy the per-robot figures describe: the recommended line (a
+    sizing study's answer, without breakdowns), else the recorded run's, else the reference
+    point, with the best policy there."""
     grid = list(study.grid)
     results = study.results
+    sizing = study.sizing or {}
+    answer = next(
+        (
+            r
+            for r in sizing.get("rows") or []
+            if r.get("robots.count") == sizing.get("answer") and not r.get("robots.mtbf")
+        ),
+        None,
+    )
+    if answer is not None and grid and all(p in answer for p in grid):
+        return {p: answer[p] for p in grid}, str(answer["policy"])
     if study.run is not None and results is not None and "point" in results.columns:
         rows = results[results["point"] == study.run.get("point")]
         if len(rows) and grid:

@@ -213,7 +213,7 @@ def _format_error(e: ValidationError) -> str:
     err = e.errors()[0]
     parts = [p for p in err["loc"] if not _is_tag(p)]
     loc = ".".join(str(p) for p in parts)
-    msg = err["msg"].removeprefix("Value error, ")
+    msg = err["msg"].removeprefix("Value error, ").replace("a valid tuple", "a list")
     kind = err["type"]
     if kind == "extra_forbidden":
         if loc in INTERNAL:

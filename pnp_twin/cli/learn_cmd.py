@@ -188,6 +188,7 @@ def _field_options() -> list[tuple[str, Any, Any]]:
             continue
         flag = "--" + f.name.replace("_", "-")
         default = f.default
+        decl: Any
         if isinstance(default, bool):
             decl = Annotated[
                 bool, typer.Option(f"{flag}/--no-{f.name.replace('_', '-')}", help=helps[f.name])
@@ -198,10 +199,8 @@ def _field_options() -> list[tuple[str, Any, Any]]:
             ]
         else:
             kind = type(default)
-            extra = {"min": 1} if kind is int and f.name != "seed" else {}
-            if f.name == "seed":
-                extra = {"min": 0}
-            decl = Annotated[kind, typer.Option(flag, help=helps[f.name], **extra)]
+            low = (0 if f.name == "seed" else 1) if kind is int else None
+            decl = Annotated[kind, typer.Option(flag, help=helps[f.name], min=low)]
         out.append((f.name, decl, default))
     return out
 

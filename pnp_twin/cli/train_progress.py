@@ -13,6 +13,7 @@ import time
 from types import TracebackType
 from typing import Any
 
+from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from pnp_twin.cli.console import note, stderr_console
@@ -23,9 +24,9 @@ PLAIN_EVERY = 30.0  # s between plain lines off a terminal
 class TrainProgress:
     """A context manager; feed it :meth:`training_row`, :meth:`rollout_row` or :meth:`advance`."""
 
-    def __init__(self, what: str, total: int) -> None:
+    def __init__(self, what: str, total: int, console: Console | None = None) -> None:
         self.what, self.total, self.done = what, total, 0
-        console = stderr_console()
+        console = console or stderr_console()
         self.terminal = console.is_terminal
         self.bar: Progress | None = None
         if self.terminal:

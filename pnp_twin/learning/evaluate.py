@@ -150,7 +150,7 @@ def trained_policy(trained: str | Path) -> tuple[str, Callable[[], Policy]]:
     """The name and a fresh-policy maker of an HDQN folder or an ``sb3:MODEL.zip`` spec."""
     spec = str(trained)
     if spec.startswith("sb3:"):
-        return make_policy(spec).name, partial(make_policy, spec)
+        return str(getattr(make_policy(spec), "name", spec)), partial(make_policy, spec)
     from policies.hdqn.policy import HDQNPolicy
 
     return f"HDQN ({HDQNPolicy.load(trained).mode})", partial(HDQNPolicy.load, trained)

@@ -146,7 +146,7 @@ def _save_loop(path: Path, loop: LoopState, driver: EpochDriver, credit: TeamCre
     keys = sorted(loop.pending)
     pending = [loop.pending[k] for k in keys]
     history = driver.history
-    arrays = {
+    arrays: dict[str, Any] = {
         "pending_key": np.asarray(keys, dtype=np.int64),
         "pending_action": np.asarray([p[2] for p in pending], dtype=np.int64),
         "pending_time": np.asarray([p[3] for p in pending], dtype=np.float64),
@@ -162,7 +162,7 @@ def _save_loop(path: Path, loop: LoopState, driver: EpochDriver, credit: TeamCre
         if pending[0][1] is not None:
             arrays["pending_extra"] = np.stack([p[1] for p in pending])  # type: ignore[misc]
     with atomic_path(path) as tmp, tmp.open("wb") as f:
-        np.savez(f, **arrays)
+        np.savez(f, **arrays)  # type: ignore[arg-type]
 
 
 def _load_loop(path: Path, loop: LoopState, credit: TeamCredit | None) -> list[dict[int, int]]:

@@ -24,6 +24,7 @@ from policies import make_policy
 from twin.errors import UserError
 from twin.loader import ScenarioError, with_overrides
 from twin.scenario import Scenario, SweepConfig, duplicate_policy
+from twin.trace import check_replay
 
 RESERVED = {
     "sweep": "the study itself cannot be swept",
@@ -184,6 +185,7 @@ def build_plan(
         base["warmup"] = w
     try:
         resolved = with_overrides(scenario, base) if base else scenario
+        check_replay(resolved)  # a replayed trace must cover the study's duration
     except ScenarioError as e:
         raise StudyError(f"sweep: {e}") from None
     for path, values in grid.items():

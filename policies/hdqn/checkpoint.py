@@ -218,9 +218,9 @@ def warn_if_other_line(meta: dict[str, Any], belt: Any, robots: list[Any], where
         arm = max(r.arm_speed for r in robots)
         if not math.isclose(float(tr["arm_speed"]), arm):
             diffs.append(f"robots.arm_speed {arm:g} (trained {float(tr['arm_speed']):g})")
-    key = (where, trained.get("name"), tuple(diffs))
-    if diffs and key not in _WARNED:  # once per process, not once per run of a sweep
-        _WARNED.add(key)
+    seen = (where, trained.get("name"), tuple(diffs))
+    if diffs and seen not in _WARNED:  # once per process, not once per run of a sweep
+        _WARNED.add(seen)
         log.warning(
             "warning: %s was trained on scenario '%s'; this line differs: %s",
             where,

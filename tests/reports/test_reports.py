@@ -21,8 +21,8 @@ from reports import (
     load_study,
     record_figures,
     render_report,
+    welch,
 )
-from reports import welch
 from reports.text import (
     fmt_pct,
     fmt_pm,
@@ -61,7 +61,6 @@ def sizing(tmp_path_factory: pytest.TempPathFactory) -> Path:
         policies=("SD",),
         replications=3,
         kind="size",
-        records=False,
         target=45.0,
     )
 

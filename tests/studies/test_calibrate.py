@@ -56,7 +56,7 @@ def test_fit_recovers_the_geometry_that_made_the_targets(tmp_path: Path) -> None
         parse_fit("robots.bin_offset.1=0.1:0.8"),
         parse_fit("robots.pick_time,robots.place_time=0:0.2"),
     )
-    problem = Problem(sc, targets, params, ("SPT",), 2, max_evals=60, profile=0, pairs=0)
+    problem = Problem(sc, targets, params, ("SPT",), 2, max_evals=30, profile=0, pairs=0)
     cal = calibrate(problem, tmp_path / "fit")
     fitted = cal.fitted
     assert abs(fitted["robots.bin_offset.1"] - TRUE_BIN) < 0.02, fitted

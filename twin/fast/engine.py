@@ -185,13 +185,14 @@ class FastLine:
     def recorder(self) -> Recorder:
         """The run's records in the twin's Recorder, so tables are built by the same code."""
         rec = Recorder(len(self.fed))  # defaults for every list, then the run's values
-        rec.robot = self.rec_i[:, 0].tolist()
-        names = L.RULE_NAMES
-        rec.rule = [names[c] if c >= 0 else None for c in self.rec_i[:, 1].tolist()]
-        rec.decided_at = self.rec_f[:, 0].tolist()
-        rec.picked_at = self.rec_f[:, 1].tolist()
-        rec.placed_at = self.rec_f[:, 2].tolist()
-        rec.blocked = self.rec_f[:, 3].tolist()
+        # arrays where Recorder keeps lists: its tables read them with np.asarray / np.where
+        rec.robot = self.rec_i[:, 0]  # type: ignore[assignment]
+        names = np.array([*L.RULE_NAMES[:-1], None], dtype=object)
+        rec.rule = names[self.rec_i[:, 1]].tolist()  # code -1 (not picked) -> None
+        rec.decided_at = self.rec_f[:, 0]  # type: ignore[assignment]
+        rec.picked_at = self.rec_f[:, 1]  # type: ignore[assignment]
+        rec.placed_at = self.rec_f[:, 2]  # type: ignore[assignment]
+        rec.blocked = self.rec_f[:, 3]  # type: ignore[assignment]
         k = int(self.gs[L.NSPANS])
         states = [L.SPAN_NAMES[s] for s in self.sp_i[:k, 1].tolist()]
         rec.spans = list(
@@ -199,7 +200,7 @@ class FastLine:
         )
         counts: Counter[tuple[int, str]] = Counter()
         for r, c in zip(*np.nonzero(self.counts), strict=True):
-            counts[(int(r), names[c])] = int(self.counts[r, c])
+            counts[(int(r), L.RULE_NAMES[c])] = int(self.counts[r, c])
         rec.decisions = counts
         return rec
 

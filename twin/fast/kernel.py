@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 from twin.fast.layout import (
@@ -181,7 +180,7 @@ def _draw(fp, ip, ist, gs, exps, r, col):
     return mean * exps[r, k]
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f):
     """Robot._candidates: unclaimed parts whose interception point lies in [a, b]."""
     v = gp[V]
@@ -223,7 +222,7 @@ def _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f):
     return n
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _lemire(siro, gs, n):
     """numpy Generator.integers(n) on a pre-drawn stream of next_uint32 outputs."""
     rng = n - 1
@@ -251,7 +250,7 @@ def _lemire(siro, gs, n):
     return m >> 32
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _choose(fp, ip, gp, gs, siro, r, n, c_f):
     """policies.rules applied to the candidates (furthest downstream first)."""
     rule = ip[r, RULE]
@@ -289,7 +288,7 @@ def _choose(fp, ip, gp, gs, siro, r, n, c_f):
     return best
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _next_entry(gp, fed, holder, now, x, hint):
     """Belt.next_entry: time until the next unclaimed part upstream of x reaches it."""
     v = gp[V]
@@ -304,7 +303,7 @@ def _next_entry(gp, fed, holder, now, x, hint):
 
 
 # -- the gateway ---------------------------------------------------------------------------
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _open(fs, ist, gs, col, now):
     """Open an epoch for the robots flagged in column ``col`` of ``ist``."""
     gs[EPOCHS] += 1
@@ -314,7 +313,7 @@ def _open(fs, ist, gs, col, now):
             _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _maybe_all(fs, ist, gs, now):
     n = ist.shape[0]
     some = False
@@ -341,7 +340,7 @@ def _expected_waiting(ist):
     return some, True
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _join_any(fs, ist, gs, r, now):
     n = ist.shape[0]
     some, _ = _expected_waiting(ist)
@@ -361,7 +360,7 @@ def _join_any(fs, ist, gs, r, now):
         _open(fs, ist, gs, MASK, now)
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _down(fs, ist, gi, gs, r, now):
     ist[r, WAITING] = 0
     ist[r, EXPECTED] = 0
@@ -373,7 +372,7 @@ def _down(fs, ist, gi, gs, r, now):
             _open(fs, ist, gs, EXPECTED, now)
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _free(fs, ist, gi, gs, r, now):
     ist[r, PC] = PC_HELD
     ist[r, ACTIVE] = 0
@@ -502,7 +501,7 @@ def run_events(
     return gs[STATUS]
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i, c_f, r, now, v):
     """Look at the candidates: pick one (claim it, start the approach) or take a NooP."""
     n = _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f)

@@ -83,7 +83,12 @@ def render_line(driver: EpochDriver, mode: str | None) -> np.ndarray | str | Non
     if driver.line is None:
         raise EnvError("render: call reset() before render()")
     if mode == "rgb_array":
-        return render.frame(driver.line)
+        line = driver.line
+        cached = getattr(driver, "_render_base", None)
+        if cached is None or cached[0] is not line:  # a new episode: a new line
+            cached = (line, render.background(line))
+            driver._render_base = cached  # type: ignore[attr-defined]
+        return render.frame(line, cached[1])
     return render.text(driver.line, driver.gripping_rate())
 
 

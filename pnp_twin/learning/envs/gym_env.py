@@ -156,7 +156,7 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
                 f"action_type: {action_type!r} is not allowed; use one of {', '.join(ACTION_TYPES)}"
             )
         self.limits = EpisodeLimits.check(max_episode_steps, max_episode_time)
-        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
+        self.render_mode = check_render_mode(render_mode, RENDER_MODES)
         if len(reward_weights) != 2:
             raise EnvError("reward_weights: give two numbers (extrinsic, intrinsic)")
         self.driver = EpochDriver(

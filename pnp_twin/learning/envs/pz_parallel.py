@@ -95,7 +95,7 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
         render_mode: str | None = None,
     ) -> None:
         self.limits = EpisodeLimits.check(max_episode_steps, max_episode_time)
-        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
+        self.render_mode = check_render_mode(render_mode, RENDER_MODES)
         self.driver = EpochDriver(
             scenario, termination=termination, rules=rules, channels=channels, overrides=overrides
         )

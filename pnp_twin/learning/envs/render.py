@@ -60,8 +60,7 @@ class _Canvas:
         self.x0, self.y_hi = -MARGIN, y_hi + MARGIN
         width = int(round((x_hi + 2 * MARGIN) * PX_PER_M))
         height = int(round((y_hi - y_lo + 2 * MARGIN) * PX_PER_M))
-        self.img = np.empty((height, width, 3), dtype=np.uint8)
-        self.img[...] = BACKGROUND
+        self.img = np.full((height, width, 3), BACKGROUND, dtype=np.uint8)
 
     def px(self, x: float, y: float) -> tuple[int, int]:
         """(row, column) of a point."""
@@ -88,11 +87,12 @@ class _Canvas:
 
     def segment(self, p: tuple[float, float], q: tuple[float, float], rgb: tuple[int, ...]) -> None:
         n = max(2, int(np.hypot(q[0] - p[0], q[1] - p[1]) * PX_PER_M))
+        s = np.linspace(0.0, 1.0, n)
+        rows = ((self.y_hi - (p[1] + s * (q[1] - p[1]))) * PX_PER_M).astype(np.intp)
+        cols = ((p[0] + s * (q[0] - p[0]) - self.x0) * PX_PER_M).astype(np.intp)
         h, w = self.img.shape[:2]
-        for s in np.linspace(0.0, 1.0, n):
-            r, c = self.px(p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1]))
-            if 0 <= r < h and 0 <= c < w:
-                self.img[r, c] = rgb
+        inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        self.img[rows[inside], cols[inside]] = rgb
 
 
 def _on_belt(line: Line) -> tuple[range, float]:
@@ -102,8 +102,8 @@ def _on_belt(line: Line) -> tuple[range, float]:
     return range(lo, hi), now
 
 
-def frame(line: Line) -> np.ndarray:
-    """The top view of ``line`` now, ``(H, W, 3)`` uint8 (see the module docstring)."""
+def background(line: Line) -> np.ndarray:
+    """What does not move: the belt, the workspaces and the bins (drawn once per line)."""
     belt = line.belt
     bins_top = max(r.bin.position[1] for r in line.robots) + 0.06
     canvas = _Canvas(belt.length, 0.0, bins_top)
@@ -113,6 +113,17 @@ def frame(line: Line) -> np.ndarray:
         canvas.rect(r.a, 0.0, min(r.b, belt.length), belt.width, tint)
         bx, by = r.bin.position
         canvas.outline(bx - 0.08, by - 0.05, bx + 0.08, by + 0.05, colour(r.index))
+    return canvas.img
+
+
+def frame(line: Line, base: np.ndarray | None = None) -> np.ndarray:
+    """The top view of ``line`` now, ``(H, W, 3)`` uint8 (see the module docstring);
+    ``base`` is :func:`background` of the line, when the caller keeps it between frames."""
+    belt = line.belt
+    bins_top = max(r.bin.position[1] for r in line.robots) + 0.06
+    canvas = _Canvas.__new__(_Canvas)
+    canvas.x0, canvas.y_hi = -MARGIN, bins_top + MARGIN
+    canvas.img = (background(line) if base is None else base).copy()
     parts, now = _on_belt(line)
     v = belt.speed
     for i in parts:
