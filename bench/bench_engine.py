@@ -34,6 +34,7 @@ from policies import make_policy
 from twin import load_scenario, simulate
 from twin.fast.engine import FastLine
 from twin.line import Line
+from twin.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLES = ("results.csv", "summary.csv", "paired.csv", "best.csv")
@@ -52,50 +53,51 @@ def cpu(fn, repeat: int) -> float:  # noqa: ANN001
 def line_bench(repeat: int) -> None:
     sc = load_scenario("paper_baseline", {"duration": 3600.0})
     for rule in ("SD", "SPT"):
+        line_rule(sc, rule, repeat)
 
-        def simpy_line() -> None:
-            Line(sc, make_policy(rule, 4), seed=1).run()
 
-        def fast_line() -> None:
-            FastLine(sc, make_policy(rule, 4), seed=1).run()
+def line_rule(sc: Scenario, rule: str, repeat: int) -> None:
+    def simpy_line() -> None:
+        Line(sc, make_policy(rule, 4), seed=1).run()
 
-        fast_line()  # compile or load the kernel first
-        a, b = cpu(simpy_line, repeat), cpu(fast_line, repeat)
-        print(
-            f"line  1 h paper_baseline {rule:3s} engine   simpy {a:8.4f} s  fast {b:8.4f} s"
-            f"  ratio {a / b:6.1f}x"
-        )
-        a = cpu(lambda: simulate(sc, make_policy(rule, 4), seed=1, engine="simpy"), repeat)
-        b = cpu(lambda: simulate(sc, make_policy(rule, 4), seed=1, engine="fast"), repeat)
-        print(
-            f"line  1 h paper_baseline {rule:3s} simulate simpy {a:8.4f} s  fast {b:8.4f} s"
-            f"  ratio {a / b:6.1f}x"
-        )
+    def fast_line() -> None:
+        FastLine(sc, make_policy(rule, 4), seed=1).run()
+
+    fast_line()  # compile or load the kernel first
+    a, b = cpu(simpy_line, repeat), cpu(fast_line, repeat)
+    print(
+        f"line  1 h paper_baseline {rule:3s} engine   simpy {a:8.4f} s  fast {b:8.4f} s"
+        f"  ratio {a / b:6.1f}x"
+    )
+    a = cpu(lambda: simulate(sc, make_policy(rule, 4), seed=1, engine="simpy"), repeat)
+    b = cpu(lambda: simulate(sc, make_policy(rule, 4), seed=1, engine="fast"), repeat)
+    print(
+        f"line  1 h paper_baseline {rule:3s} simulate simpy {a:8.4f} s  fast {b:8.4f} s"
+        f"  ratio {a / b:6.1f}x"
+    )
 
 
 def compile_bench() -> None:
     code = (
-        "import time; t=time.perf_counter(); from twin import load_scenario, simulate;"
-        "from policies import make_policy; sc=load_scenario('two_robot', {'duration': 5.0,"
-        "'warmup': 1.0}); simulate(sc, make_policy('SPT', 2), engine='fast');"
-        "print(time.perf_counter()-t)"
+        "import time; t=time.perf_counter(); c=time.process_time();"
+        "from twin import load_scenario, simulate; from policies import make_policy;"
+        "sc=load_scenario('two_robot', {'duration': 5.0, 'warmup': 1.0});"
+        "simulate(sc, make_policy('SPT', 2), engine='fast');"
+        "print(time.perf_counter()-t, time.process_time()-c)"
     )
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache}
         runs = []
         for _ in range(2):
             out = subprocess.run(
-                [sys.executable, "-c", code],
-                env=env,
-                cwd=ROOT,
-                capture_output=True,
-                text=True,
+                [sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True,
                 check=True,
-            )
-            runs.append(float(out.stdout.strip()))
+            )  # fmt: skip
+            runs.append([float(x) for x in out.stdout.split()])
+    (w0, c0), (w1, c1) = runs
     print(
-        f"compile first call in a fresh process: empty cache {runs[0]:.2f} s, "
-        f"cached {runs[1]:.2f} s (wall, imports included)"
+        f"compile first fast run in a fresh process (imports included): empty numba cache "
+        f"{w0:.2f} s wall / {c0:.2f} s CPU; cached {w1:.2f} s wall / {c1:.2f} s CPU"
     )
 
 

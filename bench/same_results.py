@@ -2,7 +2,8 @@
 what they produce.
 
     python bench/same_results.py [--before REF] [--keep DIR]
-    # REF: a git commit (default: the commit before the layers move, issue 8)
+    # REF: a git commit (default: the commit before the layers move, issue 8), or the
+    # folder of another checkout (e.g. the working tree with one helper's files reverted)
 
 Compared, each side in its own interpreter with only its own tree on ``PYTHONPATH``:
 
@@ -157,7 +158,7 @@ def renumbered(before: pd.DataFrame, after: pd.DataFrame) -> pd.DataFrame:
     shift = int(a.min() - b.min()) if len(a) and len(b) else 0
     if shift:
         before = before.copy()
-        before["robot"] = (b + shift).astype("Int64").astype(str).replace("<NA>", "")
+        before["robot"] = ["" if pd.isna(v) else str(int(v) + shift) for v in b]
     return before
 
 
@@ -168,6 +169,8 @@ def compare_values(before: Path, after: Path) -> tuple[str, list[str]]:
     elif before.suffix == ".csv":
         bt = pd.read_csv(before, dtype=str, keep_default_na=False)
         at = pd.read_csv(after, dtype=str, keep_default_na=False)
+        bt = bt.drop(columns=[c for c in VOLATILE if c in bt])
+        at = at.drop(columns=[c for c in VOLATILE if c in at])
         if len(bt) != len(at):
             return "DIFFERENT", [f"{len(bt)} rows before, {len(at)} after"]
         bt = renumbered(bt, at)
@@ -200,17 +203,21 @@ def report(old: dict[str, Path], new: dict[str, Path]) -> int:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--before", default=LAYERS_MOVE_PARENT, help="git commit to compare")
+    parser.add_argument(
+        "--before", default=LAYERS_MOVE_PARENT, help="git commit or checkout folder to compare"
+    )
     parser.add_argument("--keep", type=Path, help="copy both sides' outputs to this folder")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        before = Path(tmp) / "before"
-        subprocess.run(
-            ["git", "worktree", "add", "--detach", str(before), args.before],
-            cwd=ROOT,
-            check=True,
-            capture_output=True,
-        )
+        given = Path(args.before).is_dir()
+        before = Path(args.before).resolve() if given else Path(tmp) / "before"
+        if not given:
+            subprocess.run(
+                ["git", "worktree", "add", "--detach", str(before), args.before],
+                cwd=ROOT,
+                check=True,
+                capture_output=True,
+            )
         try:
             sides = []
             for label, tree in (("before", before), ("after", ROOT)):
@@ -224,8 +231,9 @@ def main() -> None:
                         Path(tmp) / f"work_{label}", args.keep / label, dirs_exist_ok=True
                     )
         finally:
-            subprocess.run(["git", "worktree", "remove", "--force", str(before)], cwd=ROOT)
-            shutil.rmtree(before, ignore_errors=True)
+            if not given:
+                subprocess.run(["git", "worktree", "remove", "--force", str(before)], cwd=ROOT)
+                shutil.rmtree(before, ignore_errors=True)
     n = len(sides[0])
     print(
         f"{n - bad} of {n} outputs have the same values "

@@ -72,7 +72,7 @@ table.facts th { position:static; text-align:left; width:210px; background:none;
   text-transform:none; letter-spacing:0; font-size:13.5px; vertical-align:top; }
 table.facts td { text-align:left; white-space:normal; }
 code { font-family:ui-monospace,SFMono-Regular,Menlo,Consolas,monospace; font-size:12.5px;
-  background:#f1f3f6; padding:2px 6px; border-radius:4px; word-break:break-all; }
+  background:#f1f3f6; padding:2px 6px; border-radius:4px; word-break:normal; }
 .note { color:var(--muted); font-size:13px; font-style:italic; }
 .badge { display:inline-block; background:rgba(255,255,255,.16); border-radius:999px;
   padding:2px 10px; font-size:12px; margin-left:10px; vertical-align:middle; }

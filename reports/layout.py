@@ -318,7 +318,7 @@ def mix_table(study: Study) -> str:
             ]
         )
     header = ["Rank", *(f"Robot {k}" for k in range(1, n + 1))]
-    header += ["Gripping rate (%)", "− best, points (paired 95 % CI)"]
+    header += ["Gripping rate (%)", "Difference to the best, points (paired 95 % CI)"]
     classes = ["best" if i == 0 else "" for i in range(len(rows))]
     return table_html(header, rows, left=n + 1, classes=classes, scroll=len(rows) > 14)
 
@@ -332,10 +332,13 @@ def mix_section(study: Study) -> Section | None:
         items.append(mix_table(study))
         items.append(figures.mix_figure(study.mix))
     m = study.mix
+    why = {
+        "budget": "it stopped at its budget",
+        "converged": "it stopped when constructions found no new mix",
+    }.get(str(m.get("stopped")), "every mix")
     intro = (
-        f"{m.get('evaluated', len(ranked))} mixes evaluated ({m.get('method', 'search')}"
-        + (f", stopped: {m['stopped']}" if m.get("stopped") else "")
-        + "), ranked by mean gripping rate over the same replications (common random "
+        f"{m.get('evaluated', len(ranked))} mixes evaluated ({m.get('method', 'search')}: {why}"
+        "), ranked by mean gripping rate over the same replications (common random "
         "numbers). Per-robot dispatching rules, searched as Huang et al. did: the static "
         "baseline a learned policy has to beat."
     )
@@ -390,14 +393,17 @@ def robots_section(study: Study) -> Section | None:
     results = study.results
     if results is None or record_figures.robot_count(results) == 0:
         return None
+    if "r1_passed_on" not in results.columns:  # a folder written before passed on / lost
+        return None
     point, policy = showcase_point(study)
     runs = at_point(results, point)
     if runs[runs["policy"] == policy].empty:
         return None
     fig = record_figures.robots_figure(results, point, policy)
     intro = "Where each robot's time goes, and what becomes of the parts it leaves: passed on "
-    intro += "(picked by a robot downstream) or lost (to the return conveyor). "
-    intro += "The line shown is the recommended one."
+    intro += "(picked by a robot downstream) or lost (to the return conveyor)."
+    if study.sizing is not None or study.mix is not None:
+        intro += " The line shown is the recommended one."
     return Section("robots", "Robots", esc(intro), [fig])
 
 

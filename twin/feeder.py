@@ -71,8 +71,9 @@ class Feeder:
         """The feeder's process: put each part of the belt's stream on it at its arrival.
 
         One process for the whole stream, sleeping until the next arrival. It wakes at the
-        exact arrival instant and before any other event of that instant, so a robot that
-        decides then sees the part (as if it had always been there).
+        arrival instant (or, where no float delay lands on it, just before) and ahead of any
+        other event of that instant, so a robot that looks then sees the part; the belt
+        shows a part put a hair early only from its fed time on.
         """
         fed = belt.fed
         i, n = 0, len(fed)
@@ -80,9 +81,8 @@ class Feeder:
             at = fed[i]
             if at > env.now:
                 yield _Arrival(env, at)
-            now = env.now
             j = i + 1
-            while j < n and fed[j] <= now:  # parts arriving together
+            while j < n and fed[j] <= at:  # parts arriving together
                 j += 1
             belt.arrived = j  # Belt.put, inlined: this loop runs once per part
             i = j
@@ -127,8 +127,9 @@ class Feeder:
 
 
 class _Arrival(simpy.Event):
-    """A timeout that fires at the absolute time ``at`` (never before it), ahead of every
-    other event of that instant: URGENT priority, initialised as :class:`simpy.Timeout`."""
+    """A timeout that fires at the absolute time ``at`` (or at the last float time before
+    it that ``now + delay`` can reach), ahead of every other event of that instant: URGENT
+    priority, initialised as :class:`simpy.Timeout` initialises itself."""
 
     def __init__(self, env: simpy.Environment, at: float) -> None:
         self.env = env
@@ -137,21 +138,21 @@ class _Arrival(simpy.Event):
         self._ok = True
         now = env.now
         delay = at - now
-        # now + (at - now) can miss ``at`` by a unit in the last place: step onto it
-        if now + delay != at:
+        if now + delay != at:  # rounding: step onto ``at``, or stay just short of it
             delay = _onto(now, at, delay)
         env.schedule(self, URGENT, delay)
 
 
 def _onto(now: float, at: float, delay: float) -> float:
-    """The delay closest to ``delay`` with now + delay == at (or the least above it)."""
+    """The delay d nearest ``delay`` with now + d == at, else the largest with now + d < at
+    (with ties to even some sums are unreachable)."""
+    while delay > 0.0 and now + delay > at:
+        delay = math.nextafter(delay, 0.0)
     while now + delay < at:
-        delay = math.nextafter(delay, math.inf)
-    while now + delay > at:
-        shorter = math.nextafter(delay, 0.0)
-        if now + shorter < at:
+        longer = math.nextafter(delay, math.inf)
+        if now + longer > at:
             break
-        delay = shorter
+        delay = longer
     return delay
 
 

@@ -32,7 +32,7 @@ import torch
 
 from pnp_twin.learning.envs.driver import EnvError
 from pnp_twin.learning.rollout import Labels, LabelSettings, label_episode
-from pnp_twin.learning.runlog import CsvLog
+from pnp_twin.learning.runlog import CsvLog, truncate_log
 from pnp_twin.learning.train import (
     VALIDATION_COLUMNS,
     VALIDATION_SEED_BASE,
@@ -155,7 +155,10 @@ def train_rollout(
     baselines = rule_baselines(val_scenario, validation)
     # "step" counts labelled decisions (the transitions of this training), as in train's eval.csv
     columns = ["step", "episodes", "wall_time", *VALIDATION_COLUMNS]
-    eval_log = CsvLog(folder / "eval.csv", columns, append=args.resume)
+    resuming = bool(parts)  # a resume with no labels yet starts the logs afresh
+    if resuming:  # rows of rounds after the saved labels come again
+        truncate_log(folder / "eval.csv", len(parts[0]))
+    eval_log = CsvLog(folder / "eval.csv", columns, append=resuming)
     t0 = time.perf_counter()
     while done < args.episodes:
         upto = min(args.episodes, done + args.round_episodes)

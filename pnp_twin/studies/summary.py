@@ -7,7 +7,8 @@ two separate intervals suggest.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import pandas as pd
 
@@ -79,3 +80,23 @@ def paired_differences(
             }
         )
     return pd.DataFrame(rows)
+
+
+def showcase_point(
+    best: pd.DataFrame, grid: Mapping[str, Sequence[Any]], scenario: Mapping[str, Any]
+) -> tuple[int, str]:
+    """(point, policy) of the run a sweep's report shows up close: the base line (each swept
+    parameter at the scenario's own value, else the middle of its values, as the report's
+    reference point) with its best policy; point 0 when ``best`` lacks it."""
+    want = {}
+    for path, values in grid.items():
+        node: Any = scenario
+        for key in path.split("."):
+            node = node.get(key) if isinstance(node, Mapping) else None
+        values = sorted(values)
+        want[path] = node if node in values else values[(len(values) - 1) // 2]
+    mask = pd.Series(True, index=best.index)
+    for path, value in want.items():
+        mask &= best[path] == value
+    row = best[mask].iloc[0] if mask.any() else best.iloc[0]
+    return int(row["point"]), str(row["policy"])

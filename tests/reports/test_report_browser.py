@@ -191,3 +191,21 @@ def test_the_belt_animation_plays_in_a_browser(sweep_dir: Path) -> None:
     assert t > 10.0, after  # the clock moved: the frames play
     assert parts_before and parts_after != parts_before  # and the parts moved with it
     assert slider_steps == 251  # a window of 50 s (a minute, cut at the run's end) at 0.2 s
+
+
+def test_run_report_renders_offline(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from pnp_twin.cli import app
+
+    report = tmp_path / "run.html"
+    args = ["run", "paper_baseline", "--set", "duration=60", "--set", "warmup=10"]
+    result = CliRunner().invoke(app, [*args, "--report", str(report)])
+    assert result.exit_code == 0, result.stderr
+    seen = open_report(report, tmp_path / "run.png")
+    assert seen["errors"] == [] and seen["blocked"] == []
+    # robots + timeline + belt + warm-up
+    assert seen["declared"] == seen["divs"] == seen["rendered"] == 4
+    html = report.read_text(encoding="utf-8")
+    assert '<section id="answer">' in html and "With SD the line grips" in html
+    shutil.copyfile(tmp_path / "run.png", SCREENSHOT.with_name("report_screenshot_run.png"))

@@ -221,7 +221,7 @@ def test_single_point_single_policy_study(tmp_path: Path) -> None:
 def test_mix_report_ranks_the_mixes(mix2: Path) -> None:
     html = render_report(mix2)
     mix = json.loads((mix2 / "mix.json").read_text())
-    assert "Rule-mix ranking" in html and "4 mixes evaluated (exhaustive" in html
+    assert "Rule-mix ranking" in html and "4 mixes evaluated (exhaustive: every mix)" in html
     table = html[html.index("<table", html.index('id="mix"')) :]
     table = table[: table.index("</table>")]
     assert table.count("<tr") == 1 + 4  # header and every mix

@@ -194,3 +194,20 @@ def test_unknown_layout_is_a_one_line_error():
 
     with pytest.raises(StudyError, match="--layout: 'wide' is not allowed; allowed extend, share"):
         sizing_setup(load_scenario("paper_baseline"), {COUNT: [2]}, "wide")
+
+
+def test_a_sweep_shows_its_base_line_up_close_not_point_0():
+    from pnp_twin.studies.summary import showcase_point
+
+    best = pd.DataFrame(
+        {
+            "point": [0, 1, 2],
+            "robots.arm_speed": [2.0, 3.0, 4.0],
+            "policy": ["SD", "SPT", "SD"],
+            "gripping_rate_mean": [60.0, 70.0, 80.0],
+        }
+    )
+    grid = {"robots.arm_speed": [2.0, 3.0, 4.0]}
+    assert showcase_point(best, grid, {"robots": {"arm_speed": 3.0}}) == (1, "SPT")
+    assert showcase_point(best, grid, {"robots": {"arm_speed": 2.5}}) == (1, "SPT")  # middle
+    assert showcase_point(best, {}, {}) == (0, "SD")

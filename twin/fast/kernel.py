@@ -16,8 +16,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from twin.fast.jit import compiled
 from twin.fast.layout import (
     ACC,
     ACTIVE,
@@ -108,7 +107,7 @@ from twin.fast.mathlib import intercept_time, move_time, position_along, py_hypo
 FREE = -1
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@compiled(inline=True)
 def _bisect(a, x, right, hint):
     """bisect_left (or bisect_right) of sorted ``a``, galloping out from index ``hint``.
 
@@ -143,7 +142,7 @@ def _bisect(a, x, right, hint):
     return lo
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@compiled(inline=True)
 def _schedule(fs, ist, gs, r, at, prio, pc):
     fs[r, WAKE] = at
     ist[r, WPRIO] = prio
@@ -153,7 +152,7 @@ def _schedule(fs, ist, gs, r, at, prio, pc):
     ist[r, PC] = pc
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@compiled(inline=True)
 def _span(gs, sp_i, sp_f, r, state, start, end):
     if end > start:
         k = gs[NSPANS]
@@ -167,7 +166,7 @@ def _span(gs, sp_i, sp_f, r, state, start, end):
         gs[NSPANS] = k + 1
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@compiled(inline=True)
 def _draw(fp, ip, ist, gs, exps, r, col):
     mean = fp[r, col]
     if ip[r, FAILMODE] == FIXED:
@@ -180,7 +179,7 @@ def _draw(fp, ip, ist, gs, exps, r, col):
     return mean * exps[r, k]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f):
     """Robot._candidates: unclaimed parts whose interception point lies in [a, b]."""
     v = gp[V]
@@ -222,7 +221,7 @@ def _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f):
     return n
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _lemire(siro, gs, n):
     """numpy Generator.integers(n) on a pre-drawn stream of next_uint32 outputs."""
     rng = n - 1
@@ -250,7 +249,7 @@ def _lemire(siro, gs, n):
     return m >> 32
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _choose(fp, ip, gp, gs, siro, r, n, c_f):
     """policies.rules applied to the candidates (furthest downstream first)."""
     rule = ip[r, RULE]
@@ -288,7 +287,7 @@ def _choose(fp, ip, gp, gs, siro, r, n, c_f):
     return best
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _next_entry(gp, fed, holder, now, x, hint):
     """Belt.next_entry: time until the next unclaimed part upstream of x reaches it."""
     v = gp[V]
@@ -303,7 +302,7 @@ def _next_entry(gp, fed, holder, now, x, hint):
 
 
 # -- the gateway ---------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _open(fs, ist, gs, col, now):
     """Open an epoch for the robots flagged in column ``col`` of ``ist``."""
     gs[EPOCHS] += 1
@@ -313,7 +312,7 @@ def _open(fs, ist, gs, col, now):
             _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _maybe_all(fs, ist, gs, now):
     n = ist.shape[0]
     some = False
@@ -328,7 +327,7 @@ def _maybe_all(fs, ist, gs, now):
         _open(fs, ist, gs, MASK, now)
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@compiled(inline=True)
 def _expected_waiting(ist):
     """(expected is non-empty, expected <= waiting)."""
     some = False
@@ -340,7 +339,7 @@ def _expected_waiting(ist):
     return some, True
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _join_any(fs, ist, gs, r, now):
     n = ist.shape[0]
     some, _ = _expected_waiting(ist)
@@ -360,7 +359,7 @@ def _join_any(fs, ist, gs, r, now):
         _open(fs, ist, gs, MASK, now)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _down(fs, ist, gi, gs, r, now):
     ist[r, WAITING] = 0
     ist[r, EXPECTED] = 0
@@ -372,7 +371,7 @@ def _down(fs, ist, gi, gs, r, now):
             _open(fs, ist, gs, EXPECTED, now)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _free(fs, ist, gi, gs, r, now):
     ist[r, PC] = PC_HELD
     ist[r, ACTIVE] = 0
@@ -385,7 +384,7 @@ def _free(fs, ist, gi, gs, r, now):
 
 
 # -- the robot -----------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def run_events(
     fp, ip, gp, gi, fs, ist, gs, gf, fed, ys, holder, left_at,
     rec_i, rec_f, sp_i, sp_f, counts, siro, exps, c_i, c_f, stop_at,
@@ -501,7 +500,7 @@ def run_events(
     return gs[STATUS]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i, c_f, r, now, v):
     """Look at the candidates: pick one (claim it, start the approach) or take a NooP."""
     n = _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f)
@@ -531,7 +530,7 @@ def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i
     _schedule(fs, ist, gs, r, now + (t + fp[r, PICK]), NORMAL, PC_APPROACH)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def start_robots(fp, ip, fs, ist, gs, exps):
     """Robot.__init__ and Line start: first failures drawn, processes initialised in order."""
     for r in range(ist.shape[0]):
@@ -546,7 +545,7 @@ def start_robots(fp, ip, fs, ist, gs, exps):
         _schedule(fs, ist, gs, r, 0.0, URGENT, PC_START)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def close_open_spans(ist, fs, gs, sp_i, sp_f, now):
     """Recorder.close_open_spans: a wait or repair still under way at the end counts."""
     for r in range(ist.shape[0]):

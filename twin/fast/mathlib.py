@@ -16,10 +16,12 @@ import math
 import numpy as np
 from numba import njit
 
+from twin.fast.jit import compiled
+
 T27 = 134217729.0  # Veltkamp constant 2**27 + 1
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@compiled(inline=True)
 def py_hypot(a: float, b: float) -> float:
     """``math.hypot(a, b)`` exactly as CPython 3.11 computes it (finite inputs)."""
     x0 = abs(a)
@@ -81,7 +83,7 @@ def py_hypot(a: float, b: float) -> float:
     return (h + x / (2.0 * h)) / scale
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@compiled(inline=True)
 def py_pow(x: float, e: float) -> float:
     """``x ** e`` for finite x and a positive even-or-fractional e, as CPython's float_pow."""
     if x == 0.0:
@@ -92,7 +94,7 @@ def py_pow(x: float, e: float) -> float:
     return x**e
 
 
-@njit(cache=True, inline="always", error_model="numpy", _nrt=False)
+@compiled(inline=True)
 def move_time(distance: float, speed: float, acceleration: float) -> float:
     """twin.geometry.move_time."""
     if acceleration <= 0.0:
@@ -103,13 +105,13 @@ def move_time(distance: float, speed: float, acceleration: float) -> float:
     return 2.0 * math.sqrt(distance / acceleration)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def _late(tt: float, dx: float, dy: float, v: float, v_r: float, acc: float) -> float:
     x = dx + v * tt
     return move_time(py_hypot(x, dy), v_r, acc) - tt
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def intercept_time(dx: float, dy: float, v: float, v_r: float, acc: float) -> float:
     """twin.geometry.intercept_time."""
     a = v_r * v_r - v * v
@@ -133,7 +135,7 @@ def intercept_time(dx: float, dy: float, v: float, v_r: float, acc: float) -> fl
     return hi
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@compiled()
 def position_along(
     sx: float, sy: float, ex: float, ey: float, elapsed: float, speed: float, acc: float
 ) -> tuple[float, float]:
