@@ -62,9 +62,9 @@ def bare_loop(n_events: int, n_procs: int) -> float:
 def timed_run(tree: Path, args: argparse.Namespace, seed: int) -> dict[str, float]:
     """CPU and wall seconds of one run in ``tree``'s own interpreter."""
     cmd = [sys.executable, "-c", TIMED_RUN, args.scenario, args.policy, str(args.hours), str(seed)]
-    out = subprocess.run(
-        cmd, env={"PYTHONPATH": str(tree)}, capture_output=True, text=True, check=True
-    )
+    # run in the tree itself: ``python -c`` puts the working directory first on sys.path
+    env = {"PYTHONPATH": str(tree)}
+    out = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=True)
     return json.loads(out.stdout)
 
 

@@ -11,6 +11,7 @@ from typing import Any
 import pandas as pd
 
 from reports import figures, record_figures, style, welch
+from reports.answers import headline, precision_text
 from reports.html import Page, Section, esc, table_html
 from reports.load import Study
 from reports.text import (
@@ -19,7 +20,6 @@ from reports.text import (
     fmt_pm,
     fmt_seconds,
     fmt_value,
-    headline,
     key_findings,
     param_label,
     param_value,
@@ -267,6 +267,8 @@ def answer_section(study: Study) -> Section:
     """The answer in one sentence first; for a sizing study the reasoning, the chart and the
     layout the robots were given."""
     sentences = [headline(study)]
+    if precision_text(study.meta):
+        sentences.append(precision_text(study.meta))
     if study.sizing is not None:
         sentences += sizing_text(study.sizing)[1:]
         layout = study.sizing.get("layout") or {}

@@ -9,8 +9,8 @@ part positions on the belt are analytic (x = v_b (t - fed_at)).
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Generator
+from heapq import heappush
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -71,9 +71,8 @@ class Feeder:
         """The feeder's process: put each part of the belt's stream on it at its arrival.
 
         One process for the whole stream, sleeping until the next arrival. It wakes at the
-        arrival instant (or, where no float delay lands on it, just before) and ahead of any
-        other event of that instant, so a robot that looks then sees the part; the belt
-        shows a part put a hair early only from its fed time on.
+        arrival instant exactly and ahead of any other event of that instant, so a robot
+        that looks then sees the part.
         """
         fed = belt.fed
         i, n = 0, len(fed)
@@ -127,33 +126,20 @@ class Feeder:
 
 
 class _Arrival(simpy.Event):
-    """A timeout that fires at the absolute time ``at`` (or at the last float time before
-    it that ``now + delay`` can reach), ahead of every other event of that instant: URGENT
-    priority, initialised as :class:`simpy.Timeout` initialises itself."""
+    """A timeout that fires at the absolute time ``at``, ahead of every other event of that
+    instant (URGENT priority); initialised as :class:`simpy.Timeout` initialises itself.
+
+    ``Environment.schedule`` takes a delay, and ``now + (at - now)`` can miss ``at`` by a
+    unit in the last place (with ties to even, some sums are out of reach), so it is queued
+    at ``at`` itself, the way ``schedule`` queues events.
+    """
 
     def __init__(self, env: simpy.Environment, at: float) -> None:
         self.env = env
         self.callbacks = []
         self._value = None
         self._ok = True
-        now = env.now
-        delay = at - now
-        if now + delay != at:  # rounding: step onto ``at``, or stay just short of it
-            delay = _onto(now, at, delay)
-        env.schedule(self, URGENT, delay)
-
-
-def _onto(now: float, at: float, delay: float) -> float:
-    """The delay d nearest ``delay`` with now + d == at, else the largest with now + d < at
-    (with ties to even some sums are unreachable)."""
-    while delay > 0.0 and now + delay > at:
-        delay = math.nextafter(delay, 0.0)
-    while now + delay < at:
-        longer = math.nextafter(delay, math.inf)
-        if now + longer > at:
-            break
-        delay = longer
-    return delay
+        heappush(env._queue, (at, URGENT, next(env._eid), self))
 
 
 def resampled(scenario: Scenario, seed: int, other: int, at: float, duration: float) -> PartStream:

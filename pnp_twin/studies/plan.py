@@ -21,7 +21,7 @@ from pydantic import BaseModel
 
 from pnp_twin.studies.seeds import replication_seeds
 from policies import make_policy
-from twin.errors import UserError
+from twin.errors import UserError, excerpt
 from twin.loader import ScenarioError, with_overrides
 from twin.scenario import Scenario, SweepConfig, duplicate_policy
 from twin.trace import check_replay
@@ -193,7 +193,9 @@ def build_plan(
         if problem:
             raise StudyError(problem)
         if isinstance(values, str | bytes) or not isinstance(values, Sequence) or not values:
-            raise StudyError(f"sweep.grid.{path}: {values!r} is not a non-empty list of values")
+            raise StudyError(
+                f"sweep.grid.{path}: {excerpt(values)} is not a non-empty list of values"
+            )
     twice = duplicate_policy(policies)
     if twice:
         raise StudyError(f"--policy: {twice} (names are case-insensitive); name each policy once")

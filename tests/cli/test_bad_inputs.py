@@ -515,3 +515,23 @@ def test_the_suite_covers_every_command_and_at_least_80_cases() -> None:
     listed = {c.name for c in app.registered_commands if c.name} - {"list"}
     assert listed <= commands, listed - commands
     assert len(CASES) >= 80
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["run", "two_robot", "--set", "duration=20", "--set", "warmup=2"],
+        ["sweep", "paper_baseline", "--out", "o", "--no-report", "--workers", "1", "-r", "2",
+         "--set", "sweep.grid={'feeder.rate': [8.0]}", "--policy", "SD", *SHORT],
+    ],
+    ids=["run", "sweep"],
+)  # fmt: skip
+def test_force_goes_ahead_above_the_limit(
+    args: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr("twin.budget.MAX_PARTS", 10)  # every run is now "too large"
+    refused = CliRunner().invoke(app, args)
+    assert refused.exit_code == 2 and "--force" in refused.stderr
+    forced = CliRunner().invoke(app, [*args, "--force"])
+    assert forced.exit_code == 0, forced.output

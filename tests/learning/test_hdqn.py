@@ -158,6 +158,11 @@ def _tiny_args(out: Path, steps: int, mode: str = "async", **kw) -> TrainArgs:
     )
 
 
+def _same_kpis(a: dict, b: dict) -> bool:
+    """Equal KPIs, NaN equal to NaN (some KPI series hold NaN for empty bins)."""
+    return json.dumps(a, sort_keys=True, default=str) == json.dumps(b, sort_keys=True, default=str)
+
+
 def _rows(path: Path) -> list[dict[str, str]]:
     with path.open() as f:
         return list(csv.DictReader(f))
@@ -192,7 +197,7 @@ def test_policy_runs_through_simulate_and_is_deterministic(trained):
     a = simulate(scenario, make_policy(f"hdqn:{folder}"), seed=7)
     b = simulate(scenario, make_policy(f"hdqn:{out}"), seed=7)  # the run folder is found
     assert 0.0 < a.kpis["gripping_rate"] <= 100.0
-    assert a.kpis == b.kpis
+    assert _same_kpis(a.kpis, b.kpis)
     used = set(a.decisions["rule"]) - {"NooP"}
     assert used and used <= {"FIFO", "LIFO", "SIRO", "SD", "LD", "SPT"}
 
@@ -343,7 +348,7 @@ def test_belt_view_with_downstream_reward_trains_and_runs(tmp_path):
     )
     a = simulate(scenario, make_policy(f"hdqn:{folder}"), seed=3)
     b = simulate(scenario, make_policy(f"hdqn:{folder}"), seed=3)
-    assert a.kpis["parts_picked"] > 0 and a.kpis == b.kpis
+    assert a.kpis["parts_picked"] > 0 and _same_kpis(a.kpis, b.kpis)
 
 
 def test_checkpoints_without_the_view_option_still_see_windows():

@@ -23,16 +23,8 @@ from reports import (
     render_report,
     welch,
 )
-from reports.text import (
-    fmt_pct,
-    fmt_pm,
-    headline,
-    key_findings,
-    mix_headline,
-    reference_point,
-    size_headline,
-    sizing_text,
-)
+from reports.answers import headline, mix_headline, size_headline
+from reports.text import fmt_pct, fmt_pm, key_findings, reference_point, sizing_text
 from tests.study_fixture import make_study
 
 
@@ -371,3 +363,31 @@ def test_every_study_report_has_a_welch_plot(sweep3: Path, sizing: Path, mix2: P
     for folder in (sweep3, sizing, mix2):
         html = render_report(folder)
         assert '<section id="warmup">' in html and "Welch" in html, folder
+
+
+def test_an_auto_replication_study_states_the_precision_reached(
+    sweep3: Path, tmp_path: Path
+) -> None:
+    folder = tmp_path / "auto"
+    shutil.copytree(sweep3, folder, ignore=shutil.ignore_patterns("report.html"))
+    meta = json.loads((folder / "meta.json").read_text())
+    meta["precision"] = {
+        "kpi": "gripping_rate",
+        "target_half_width": 0.5,
+        "max_replications": 30,
+        "confidence": 0.95,
+        "replications": 11,
+        "rounds": [3, 6, 11],
+        "reached": True,
+        "points_short": 0,
+        "half_width_max": 0.48,
+        "worst": {"point": 1, "policy": "SD"},
+    }
+    (folder / "meta.json").write_text(json.dumps(meta))
+    html = render_report(folder)
+    assert "Replications chosen for precision (3 → 6 → 11 in rounds): every point" in html
+    assert "at most ± 0.5 points (widest ± 0.48)" in html
+    meta["precision"].update(reached=False, points_short=2, half_width_max=0.9, rounds=[3, 30])
+    (folder / "meta.json").write_text(json.dumps(meta))
+    assert "2 point(s) still have a 95 % CI of G wider than ± 0.5 points" in render_report(folder)
+    assert "Replications chosen" not in render_report(sweep3)

@@ -39,7 +39,10 @@ def test_a_run_above_the_limit_is_refused_unless_forced() -> None:
 
 def test_a_huge_grid_is_refused_from_its_list_lengths_at_once() -> None:
     scenario = load_scenario("paper_baseline")
-    grid = {"feeder.rate": list(range(1, 1001)), "belt.speed": [0.5] * 1000}
+    grid: dict[str, list[float]] = {
+        "feeder.rate": [float(r) for r in range(1, 1001)],
+        "belt.speed": [0.5] * 1000,
+    }
     t0 = time.perf_counter()
     with pytest.raises(BudgetError) as info:
         check_study(scenario, grid, policies=2, replications=5)

@@ -13,6 +13,7 @@ import subprocess
 import sys
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -228,3 +229,23 @@ def test_array_kpis_mirror_the_twin_kpis() -> None:
         ref = compute_kpis(parts, spans, line.specs, sc.warmup, line.duration)
         got = array_kpis(line, sc.warmup, line.duration)
         assert list(got) == list(ref) and _kpi_text(got) == _kpi_text(ref)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_a_run_forked_midway_continues_identically(scheme: str) -> None:
+    """State is arrays: stop anywhere, copy, continue; both copies end as one straight run."""
+    from twin.fast.engine import STATE, FastLine
+
+    sc = scenario("breakdowns", termination=scheme, **{"bins.capacity": 4})
+    whole = FastLine(sc, make_policy("SIRO", sc.robots.count))
+    whole.run()
+    part = FastLine(sc, make_policy("SIRO", sc.robots.count))
+    part.start(*part._rooms())
+    assert part.advance(12.5) == 0 and 0.0 < part.now < 12.5
+    fork = part.fork()
+    assert fork.holder is not part.holder
+    for line in (part, fork):
+        assert line.advance(line.end_at) == 0 and line.finish() == 0
+        for name in STATE:
+            if not name.startswith("_"):
+                np.testing.assert_array_equal(getattr(line, name), getattr(whole, name))

@@ -71,6 +71,13 @@ def _robot_params(scenario: Scenario, specs: list[RobotSpec]) -> tuple[np.ndarra
     return fp, ip
 
 
+STATE = (
+    "fs", "ist", "gs", "gf", "holder", "left_at", "rec_i", "rec_f", "sp_i", "sp_f", "counts",
+    "_c_i", "_c_f",
+)  # fmt: skip
+"""The arrays a run changes as it goes (the rest is parameters and pre-drawn streams)."""
+
+
 class FastLine:
     """One run of one scenario with a rule mix, as arrays; :meth:`run` fills the records."""
 
@@ -134,28 +141,31 @@ class FastLine:
 
     def run(self) -> None:
         """Feed for ``duration`` seconds, then drain (as Line.run), growing buffers if needed."""
-        n_parts = len(self.fed)
-        n = len(self.specs)
-        span_room = 4 * n_parts + 64 * n + 1024
-        siro_room = 2 * n_parts + 1024
-        mtbf = self.fp[:, L.MTBF]
-        mean = float(mtbf[mtbf > 0].min()) if self.breaks else 1.0
-        exp_room = int(4 * self.end_at / mean) + 64
+        rooms = list(self._rooms())
         while True:
-            status = self._attempt(span_room, siro_room, exp_room)
+            self.start(*rooms)
+            status = self.advance(self.end_at)
+            if status == L.ST_OK:
+                status = self.finish()
             if status == L.ST_OK:
                 return
-            if status == L.ST_SPANS:
-                span_room *= 2
-            elif status == L.ST_SIRO:
-                siro_room *= 2
-            else:
-                exp_room *= 2
+            grow = {L.ST_SPANS: 0, L.ST_SIRO: 1, L.ST_EXPS: 2}[status]
+            rooms[grow] *= 2
 
-    def _attempt(self, span_room: int, siro_room: int, exp_room: int) -> int:
+    def _rooms(self) -> tuple[int, int, int]:
+        """First guesses of the span buffer and the pre-drawn SIRO and failure streams."""
+        n_parts, n = len(self.fed), len(self.specs)
+        mtbf = self.fp[:, L.MTBF]
+        mean = float(mtbf[mtbf > 0].min()) if self.breaks else 1.0
+        # a NooP lasts a belt tick or until the next part enters: at most one per tick or part
+        spans = n * (int(self.end_at / self.gp[L.TICK]) + n_parts + 2) + 4 * n_parts + 1024
+        return spans, 2 * n_parts + 1024, int(4 * self.end_at / mean) + 64
+
+    def start(self, span_room: int, siro_room: int, exp_room: int) -> None:
+        """The state at t = 0: robots at their bases, processes about to start."""
         n_parts = len(self.fed)
         n = len(self.specs)
-        siro, exps = self._streams(siro_room, exp_room)
+        self._siro, self._exps = self._streams(siro_room, exp_room)
         self.fs = np.zeros((n, L.N_FS))
         self.ist = np.zeros((n, L.N_IS), dtype=np.int64)
         self.gs = np.zeros(L.N_GS, dtype=np.int64)
@@ -168,18 +178,33 @@ class FastLine:
         self.sp_i = np.zeros((span_room, 2), dtype=np.int64)
         self.sp_f = np.zeros((span_room, 2))
         self.counts = np.zeros((n, len(L.RULE_NAMES)), dtype=np.int64)
-        c_i = np.zeros(n_parts + 1, dtype=np.int64)
-        c_f = np.zeros((n_parts + 1, 3))
-        start_robots(self.fp, self.ip, self.fs, self.ist, self.gs, exps)
-        status = run_events(
-            self.fp, self.ip, self.gp, self.gi, self.fs, self.ist, self.gs, self.gf,
-            self.fed, self.y, self.holder, self.left_at, self.rec_i, self.rec_f,
-            self.sp_i, self.sp_f, self.counts, siro, exps, c_i, c_f, self.end_at,
-        )  # fmt: skip
-        if status == L.ST_OK:
-            status = close_open_spans(self.ist, self.fs, self.gs, self.sp_i, self.sp_f, self.end_at)
+        self._c_i = np.zeros(n_parts + 1, dtype=np.int64)
+        self._c_f = np.zeros((n_parts + 1, 3))
+        start_robots(self.fp, self.ip, self.fs, self.ist, self.gs, self._exps)
+
+    def advance(self, until: float) -> int:
+        """Process every event before ``until``; the status (0, or a buffer that ran out)."""
+        return int(
+            run_events(
+                self.fp, self.ip, self.gp, self.gi, self.fs, self.ist, self.gs, self.gf,
+                self.fed, self.y, self.holder, self.left_at, self.rec_i, self.rec_f,
+                self.sp_i, self.sp_f, self.counts, self._siro, self._exps, self._c_i,
+                self._c_f, min(until, self.end_at),
+            )  # fmt: skip
+        )
+
+    def finish(self) -> int:
+        """End the run at ``end_at`` (after :meth:`advance` to it): open spans are closed."""
+        status = close_open_spans(self.ist, self.fs, self.gs, self.sp_i, self.sp_f, self.end_at)
         self.gf[L.NOW] = self.end_at
         return int(status)
+
+    def fork(self) -> FastLine:
+        """An independent copy of the run as it stands (its state arrays copied)."""
+        other = copy.copy(self)
+        for name in STATE:
+            setattr(other, name, getattr(self, name).copy())
+        return other
 
     # -- records ---------------------------------------------------------------------------
     def recorder(self) -> Recorder:
