@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from twin.records import Recorder
 
 FREE = -1
-SWEEP = 1.0  # s between two sweeps of the belt's end by :meth:`Belt.conveying`
+SWEEP = 5.0  # s between two sweeps of the belt's end by :meth:`Belt.conveying`
 
 
 class Belt:

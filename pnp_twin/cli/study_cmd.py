@@ -478,4 +478,7 @@ def mix(
     for i, r in enumerate(result["ranked"][:10], start=1):
         t.add_row(str(i), r["mix"], _g(r["gripping_rate_mean"], r["ci_low"], r["ci_high"]))
     stdout_console().print(t)
+    from reports.answers import mix_headline  # the report's answer, best vs runner-up paired
+
+    stdout_console().print(mix_headline(result))
     _report(out, no_report)

@@ -19,6 +19,7 @@ state behind. Nothing is unpickled on load: arrays with ``allow_pickle=False``, 
 from __future__ import annotations
 
 import json
+import logging
 import math
 import random
 import shutil
@@ -36,6 +37,8 @@ from pnp_twin.learning.replay import ReplayBuffer
 from policies.hdqn.agent import DQNAgent
 from policies.hdqn.checkpoint import CheckpointError, load_agent, save_checkpoint
 from twin.output import atomic_path, write_text
+
+log = logging.getLogger(__name__)
 
 RESUME = "resume"
 OLD = "resume.old"
@@ -82,17 +85,19 @@ def save_state(
     run: Path,
     agent: DQNAgent,
     meta: dict[str, Any],
-    replay: ReplayBuffer,
+    replay: ReplayBuffer | None,
     loop: LoopState,
     driver: EpochDriver,
     credit: TeamCredit | None,
     rng: np.random.Generator,
 ) -> Path:
-    """Write ``run/resume/`` (see the module docstring) and swap it in."""
+    """Write ``run/resume/`` (see the module docstring) and swap it in; without ``replay``
+    (``--no-save-replay``) a resume starts from an empty buffer and is not exact."""
     tmp = run / f".{RESUME}.tmp"
     shutil.rmtree(tmp, ignore_errors=True)
     save_checkpoint(tmp, agent, meta, train_state=True)
-    replay.save(tmp / "replay.npz")
+    if replay is not None:
+        replay.save(tmp / "replay.npz")
     _save_loop(tmp / "loop.npz", loop, driver, credit)
     state = {
         "counters": {**loop.counters(), "last_g": loop.last_g},
@@ -127,7 +132,10 @@ def load_state(
     agent.q.train()
     try:
         state = json.loads((folder / "state.json").read_text())
-        replay.load(folder / "replay.npz")
+        if (folder / "replay.npz").is_file():
+            replay.load(folder / "replay.npz")
+        else:
+            log.warning("%s holds no replay buffer (--no-save-replay): not an exact resume", run)
         history = _load_loop(folder / "loop.npz", loop, credit)
     except (OSError, ValueError, KeyError) as e:
         raise CheckpointError(f"checkpoint: cannot resume from {folder}: {e}") from None

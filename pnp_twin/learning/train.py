@@ -404,11 +404,7 @@ def _evaluate(
 
 def _checkpoint(run: Setup, loop: LoopState, meta: dict[str, Any], folder: Path) -> None:
     """The exact resume state first, then the latest weights for inference."""
-    replay = (
-        run.replay
-        if run.args.save_replay
-        else ReplayBuffer(1, run.agent.obs_shape, run.agent.n_extra)
-    )
+    replay = run.replay if run.args.save_replay else None
     save_state(folder, run.agent, meta, replay, loop, run.driver, run.credit, run.rng)
     save_checkpoint(folder, run.agent, meta, train_state=False)
     log.debug("checkpoint at step %d in %s/%s", loop.step, folder, RESUME)

@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize
 
 from pnp_twin.studies.calibrate_eval import Evaluator, PointPrediction
 from pnp_twin.studies.calibrate_fields import FieldRef, FitParam, apply_values, current_value
@@ -219,6 +218,8 @@ def _simplex(u0: np.ndarray, step: float = 0.15) -> np.ndarray:
 
 def optimise(fit: Fit) -> str:
     """Minimise the objective with scipy's bounded Nelder-Mead; returns scipy's message."""
+    from scipy.optimize import minimize  # imported here: ~0.5 s, and only calibrate needs it
+
     k = len(fit.problem.params)
     u0 = fit.to_u(fit.problem.start())
     result = minimize(

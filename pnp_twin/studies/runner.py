@@ -102,6 +102,10 @@ class Session:
 
         o = self.options
         todo = [replace(s, engine=o.engine) for s in todo]
+        if todo and o.engine != "simpy" and o.workers > 1:
+            from twin.fast import prepare
+
+            prepare()  # compile (or load) the fast kernel once, not in every worker
         run_specs(todo, on_row, o.backend, o.workers, o.address)
         rows = self.journal.rows(specs)
         missing = [s.run_id for s, row in zip(specs, rows, strict=True) if row is None]

@@ -49,6 +49,8 @@ def test_every_readme_study_command_runs(tmp_path: Path, monkeypatch: pytest.Mon
         if args[0] == "size":  # the layout is a stated choice, not a silent longer belt
             mode = args[args.index("--layout") + 1] if "--layout" in args else "extend"
             assert f"Layout: {mode}." in result.stdout
+        if args[0] == "mix":  # the answer, with the paired margin over the runner-up
+            assert "Best rule mix: " in result.stdout
     mix = json.loads(Path("studies/mix/mix.json").read_text())
     assert mix["stopped"] in ("budget", "converged") and mix["evaluated"] <= mix["budget"]
     sizing = json.loads(Path("studies/sizing/sizing.json").read_text())

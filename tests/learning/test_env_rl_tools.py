@@ -219,6 +219,24 @@ def test_sb3_cnn_policy_takes_the_image_observation():
     model.learn(32)
     action, _ = model.predict(env.reset(seed=0)[0], deterministic=True)
     assert env.action_space.contains(int(action))
+    # the same model as a policy of the twin (sb3:MODEL.zip) sees the same upscaled image
+    from policies.sb3_policy import SB3Policy
+
+    policy = SB3Policy(model)
+    env = PickPlaceEnv(overrides=SHORT, observation="image")
+    obs, info = env.reset(options={"line_seed": 4})
+    term = False
+    while not term:  # the whole 20 s episode
+        obs, _r, term, _trunc, info = env.step(model.predict(obs, deterministic=True)[0])
+    line = env.driver.line
+    in_env = line.recorder.parts_frame(line.belt, line.last_end)
+    result = simulate(env.scenario, policy, seed=4)
+    assert policy.image and policy.scale == 5
+    cols = ["robot", "rule", "decided_at"]
+    end = info["time"] - 0.5
+    a = in_env.loc[in_env["decided_at"] < end, cols].reset_index(drop=True)
+    b = result.parts.loc[result.parts["decided_at"] < end, cols].reset_index(drop=True)
+    assert len(a) > 20 and a.equals(b)
 
 
 # -- seeds across tools ---------------------------------------------------------------------
@@ -237,6 +255,9 @@ def test_line_seed_option_is_the_cli_seed():
     assert np.array_equal(np.asarray(line.belt.fed), fed)
     _obs, info = env.reset(seed=3)
     assert info["line_seed"] != 3  # the env seed draws the line seed
+    for pz in (PickPlaceAEC(scenario), PickPlaceParallel(scenario)):
+        pz.reset(options={"line_seed": 7})
+        assert pz.driver.seed == 7 and pz.driver.line.belt.fed == line.belt.fed
 
 
 # -- SuperSuit vector path ------------------------------------------------------------------

@@ -179,3 +179,11 @@ def test_defaults_scale_with_the_steps():
     paper = settled(TrainArgs())
     assert (paper.learning_starts, paper.eval_every, paper.log_every) == (5_000, 20_000, 1_000)
     assert settled(TrainArgs(learning_starts=7)).learning_starts == 7
+
+
+def test_without_the_replay_a_resume_still_works_but_says_it_is_not_exact(tmp_path, caplog):
+    train(_args(tmp_path, steps=300, eval_every=300, save_replay=False))
+    assert not (tmp_path / RUN / "resume" / "replay.npz").exists()
+    with caplog.at_level("WARNING"):
+        train(_args(tmp_path, steps=450, eval_every=300, save_replay=False, resume=True))
+    assert any("not an exact resume" in r.getMessage() for r in caplog.records)

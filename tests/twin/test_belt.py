@@ -87,11 +87,14 @@ def test_conveying_records_the_free_parts_that_pass_the_end_with_their_exit_time
     rec = Recorder(len(FED))
     belt.claim(2, robot=0, grip_at=2.0)  # part 2 is gripped before its exit at t = 4
     env.process(belt.conveying(env, rec))
-    env.run(until=3.5)
-    assert rec.missed_at[0] == 3.0 and math.isnan(rec.missed_at[1])  # part 1 exits at 3.5
+    assert SWEEP == 5.0
+    env.run(until=4.9)  # parts 0, 1, 3 are past the end, but the first sweep is at t = 5
+    assert all(math.isnan(t) for t in rec.missed_at)
+    env.run(until=5.1)
+    assert rec.missed_at[:2] == [3.0, 3.5] and rec.missed_at[3] == 4.0
+    assert math.isnan(rec.missed_at[2]) and math.isnan(rec.missed_at[4])  # 4 exits at 5.5
     env.run()
-    assert env.now == 6.0 == 6 * SWEEP  # the sweep after the last exit (t = 5.5) ends it
-    assert rec.missed_at[:2] == [3.0, 3.5] and rec.missed_at[3:] == [4.0, 5.5]
+    assert env.now == 2 * SWEEP and rec.missed_at[4] == 5.5  # the last sweep ends it
     assert math.isnan(rec.missed_at[2])
 
 

@@ -1,10 +1,19 @@
 """The fast engine: the SimPy twin's model compiled with numba, event for event identical.
 
-Importing this package is light; numba is imported (and the kernel loaded from its on-disk
-cache, or compiled on first use) only when :func:`simulate_fast` first runs. It runs rule
-policies and per-robot rule mixes (every rule, SIRO included) under every termination
-scheme, with bins, breakdowns, acceleration limits and trace replay. Policies that are
-Python objects (the learned HDQN) are not compiled: ``engine="auto"`` runs them on SimPy.
+``twin.run.simulate(..., engine="fast" | "auto")`` runs here. Importing this package is
+light; numba is imported (and the kernel loaded from its on-disk cache, or compiled on first
+use, about 15 s of CPU) only when a fast run starts. It runs rule policies and per-robot rule
+mixes (every rule, SIRO included: numpy's ``Generator.integers`` is replayed on the policy
+stream's pre-drawn raw outputs) under every termination scheme, with bins and box changes,
+breakdowns, acceleration limits and trace replay. Policies that are Python objects (the
+learned HDQN, any other ``choose``) are not compiled: ``auto`` runs them on SimPy and
+``fast`` refuses them with one line.
+
+Modules: :mod:`~twin.fast.mathlib` (CPython's float operations, bit for bit),
+:mod:`~twin.fast.layout` (state array columns), :mod:`~twin.fast.kernel` (the event loop),
+:mod:`~twin.fast.engine` (:class:`FastLine`: a run as arrays; ``start``/``advance``/``fork``
+copy a run at any instant), :mod:`~twin.fast.kpis` (KPIs from the arrays),
+:mod:`~twin.fast.run` (the RunResult).
 """
 
 from __future__ import annotations
@@ -57,6 +66,16 @@ def simulate_fast(
     from twin.fast.run import simulate_fast as run
 
     return run(scenario, policy, seed=seed, policy_name=policy_name)
+
+
+def prepare() -> None:
+    """Compile the kernel now (or load it from the on-disk cache). A study calls this once
+    before it starts worker processes, so that they load the kernel instead of each
+    compiling it (about 15 s of CPU, once per installation)."""
+    from twin.fast.engine import FastLine
+    from twin.scenario import Scenario
+
+    FastLine(Scenario(duration=1.0, warmup=0.0), rules=["SIRO"]).run()
 
 
 def __getattr__(name: str) -> Any:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 import math
 from collections import Counter
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -84,10 +85,13 @@ class FastLine:
     def __init__(
         self,
         scenario: Scenario,
-        policy: Policy,
+        policy: Policy | None = None,
         seed: int | None = None,
         duration: float | None = None,
+        rules: Sequence[str] | None = None,
     ) -> None:
+        """``policy`` is a rule mix (policies.base.RuleMix), reset here as Line resets it;
+        or give ``rules`` (one name, or one per robot) and no policy."""
         self.scenario = scenario
         self.seed = scenario.seed if seed is None else seed
         self.duration = scenario.duration if duration is None else duration
@@ -99,10 +103,18 @@ class FastLine:
         self.fed = np.ascontiguousarray(self.fed, dtype=np.float64)
         self.y = np.ascontiguousarray(self.y, dtype=np.float64)
         self.specs = robot_specs(scenario)
-        policy.reset(self.specs, streams[2])
-        codes = rule_codes(policy, n)
-        if codes is None:
-            raise Unsupported(unsupported_reason(policy) or "engine fast: unsupported policy")
+        if policy is not None:
+            policy.reset(self.specs, streams[2])
+            codes = rule_codes(policy, n)
+            if codes is None:
+                raise Unsupported(unsupported_reason(policy) or "engine fast: unsupported policy")
+        else:
+            names = list(rules or ["FIFO"])
+            codes = [
+                L.RULE_NAMES.index(r.upper()) for r in (names * n if len(names) == 1 else names)
+            ]
+            if len(codes) != n:
+                raise Unsupported(f"engine fast: {len(codes)} rules given for {n} robots")
         self.policy = policy
         self.policy_rng = streams[2]
         self.failure_rngs = streams[3:]
@@ -184,14 +196,13 @@ class FastLine:
 
     def advance(self, until: float) -> int:
         """Process every event before ``until``; the status (0, or a buffer that ran out)."""
-        return int(
-            run_events(
-                self.fp, self.ip, self.gp, self.gi, self.fs, self.ist, self.gs, self.gf,
-                self.fed, self.y, self.holder, self.left_at, self.rec_i, self.rec_f,
-                self.sp_i, self.sp_f, self.counts, self._siro, self._exps, self._c_i,
-                self._c_f, min(until, self.end_at),
-            )  # fmt: skip
-        )
+        status = run_events(
+            self.fp, self.ip, self.gp, self.gi, self.fs, self.ist, self.gs, self.gf,
+            self.fed, self.y, self.holder, self.left_at, self.rec_i, self.rec_f,
+            self.sp_i, self.sp_f, self.counts, self._siro, self._exps, self._c_i,
+            self._c_f, min(until, self.end_at),
+        )  # fmt: skip
+        return int(status)
 
     def finish(self) -> int:
         """End the run at ``end_at`` (after :meth:`advance` to it): open spans are closed."""

@@ -275,12 +275,14 @@ def _choose(fp, ip, gp, gs, siro, r, n, c_f):
     half = gp[HALF]
     best = 0
     best_c = math.inf
+    pick = fp[r, PICK]
+    place = fp[r, PLACE]
     for k in range(n):
         t = c_f[k, 2]
         xi = c_f[k, 0] + v * t
         d = py_pow(py_pow(bx - xi, two) + py_pow(by - c_f[k, 1], two), half)
         transfer = move_time(d, fp[r, VR], fp[r, ACC])
-        c = t + fp[r, PICK] + transfer + fp[r, PLACE]
+        c = t + pick + transfer + place
         if k == 0 or c < best_c:
             best = k
             best_c = c

@@ -14,6 +14,7 @@ from pnp_twin.learning.envs.common import (
     EpisodeLimits,
     ObservationView,
     check_render_mode,
+    line_seed,
     render_line,
 )
 from pnp_twin.learning.envs.driver import EnvError, EpochDriver, is_rule_index
@@ -64,6 +65,10 @@ class PickPlaceAEC(AECEnv[str, np.ndarray, int]):
     ``max_episode_time`` simulated seconds (None: no cap, the default; a directly built
     env, like the Gymnasium one, ends at ``duration`` unless capped). Options still running
     then earn nothing. Stepping after the end raises :class:`EnvError`; call ``reset()``.
+
+    ## Seeds
+    ``reset(seed=s)`` seeds the generator that draws the line's seed;
+    ``reset(options={"line_seed": k})`` runs the part stream of ``pnp-twin run --seed k``.
 
     ## Rendering and copies
     ``render_mode`` ``"rgb_array"`` (the top view of the line) or ``"ansi"`` (the belt grid
@@ -133,7 +138,7 @@ class PickPlaceAEC(AECEnv[str, np.ndarray, int]):
     def reset(self, seed: int | None = None, options: dict[str, Any] | None = None) -> None:
         if seed is not None:
             self._seed_rng = np.random.default_rng(seed)
-        self.driver.reset(int(self._seed_rng.integers(2**31 - 1)))
+        self.driver.reset(line_seed(self._seed_rng, options))
         self.agents = list(self.possible_agents)
         self.rewards = dict.fromkeys(self.agents, 0.0)
         self._cumulative_rewards = dict.fromkeys(self.agents, 0.0)
