@@ -116,10 +116,10 @@ class Belt:
     # -- what robots and cameras see ----------------------------------------------------------
     def span(self, now: float, x_lo: float, x_hi: float) -> range:
         """Indices of the parts on the belt at ``now`` with x in [x_lo, x_hi]."""
-        v = self.speed
+        v, arrived = self.speed, self.arrived
         lo = bisect_left(self.fed, now - x_hi / v)
-        hi = bisect_right(self.fed, now - max(x_lo, 0.0) / v)
-        return range(lo, min(hi, self.arrived))
+        hi = bisect_right(self.fed, now - (x_lo if x_lo > 0.0 else 0.0) / v)
+        return range(lo, hi if hi < arrived else arrived)
 
     def next_entry(self, now: float, x: float) -> float:
         """Time until the next unclaimed part upstream of ``x`` reaches it (inf if none).

@@ -1,10 +1,14 @@
-"""KPIs of one run, computed from its record tables over the measurement window.
+"""KPIs of one run, computed from its records as plain arrays over the measurement window.
+
+This is the one implementation of the KPIs: the SimPy run passes its
+:class:`~twin.records.Recorder`'s records (:func:`recorder_records`), the fast engine its
+arrays (:meth:`twin.fast.engine.FastLine.kpi_records`), and record tables read back (tests,
+files) are turned into the same arrays once (:func:`table_records`). Inside, robots are
+indexed from 0; the KPI dictionary numbers them from 1, as everywhere a person reads them.
 
 The window is [warm-up, duration): a part counts if it was fed in it, and the run drains so
 every such part has an outcome. Time-based figures (utilisation, NooP, down time) are the
 robots' state spans clipped to the same window.
-
-Robots are numbered from 1 in the record tables, as everywhere a person reads them.
 
 Efficiency is throughput over ``max_throughput`` = min(part flow presented, the robots'
 measured cycle rate), where a robot's cycle rate (``capacity``) is its picks in the window per
@@ -27,21 +31,101 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from twin.decision import RobotSpec
 from twin.geometry import move_time
 
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from twin.records import Recorder
+
 STATES = ("busy", "noop", "wait", "blocked", "down")
+SPAN_STATES = ("wait", "interrupted", "noop", "blocked", "down")
+"""The states a span records, in the order of :attr:`SpanRecords.state`'s codes."""
 WELCH_BINS = 60  # the feeding period [0, duration) in this many bins, warm-up included
 
 
-def clipped(
-    start: pd.Series | np.ndarray, end: pd.Series | np.ndarray, w0: float, w1: float
-) -> np.ndarray:
+@dataclass(frozen=True)
+class PartRecords:
+    """One entry per part fed, in feeding order. Where a part was not picked (``picked``
+    false: it reached the return conveyor) its other entries but ``fed_at`` are not read."""
+
+    fed_at: np.ndarray  # float seconds
+    robot: np.ndarray  # int, 0-based: the robot that picked it
+    rule: np.ndarray  # int code into ``rule_names``; -1 for a pick without a rule name ("?")
+    rule_names: tuple[str, ...]
+    decided_at: np.ndarray  # float
+    placed_at: np.ndarray  # float
+    picked: np.ndarray  # bool
+
+
+@dataclass(frozen=True)
+class SpanRecords:
+    """One entry per robot state span, in the order the run recorded them."""
+
+    robot: np.ndarray  # int, 0-based
+    state: np.ndarray  # int code into SPAN_STATES
+    start: np.ndarray  # float
+    end: np.ndarray  # float
+
+
+def recorder_records(rec: Recorder, fed_at: np.ndarray) -> tuple[PartRecords, SpanRecords]:
+    """The KPIs' arrays of a SimPy run's Recorder (``fed_at``: the belt's feed times)."""
+    names = tuple(sorted({r for r in rec.rule if r is not None}))
+    code = {name: i for i, name in enumerate(names)}
+    rules = np.fromiter((-1 if r is None else code[r] for r in rec.rule), np.int64, len(rec.rule))
+    parts = PartRecords(
+        np.asarray(fed_at, dtype=float),
+        np.asarray(rec.robot, dtype=np.int64),
+        rules,
+        names,
+        np.asarray(rec.decided_at, dtype=float),
+        np.asarray(rec.placed_at, dtype=float),
+        ~np.isnan(np.asarray(rec.picked_at, dtype=float)),
+    )
+    state = {name: i for i, name in enumerate(SPAN_STATES)}
+    spans = rec.spans
+    return parts, SpanRecords(
+        np.fromiter((s[0] for s in spans), np.int64, len(spans)),
+        np.fromiter((state[s[1]] for s in spans), np.int64, len(spans)),
+        np.fromiter((s[2] for s in spans), float, len(spans)),
+        np.fromiter((s[3] for s in spans), float, len(spans)),
+    )
+
+
+def table_records(parts: pd.DataFrame, spans: pd.DataFrame) -> tuple[PartRecords, SpanRecords]:
+    """The KPIs' arrays of record tables (``Recorder.parts_frame`` / ``spans_frame``)."""
+    picked = (parts["outcome"] == "picked").to_numpy()
+    robot = parts["robot"].to_numpy(dtype=float, na_value=np.nan)
+    named = parts["rule"].notna().to_numpy()
+    labels = [str(r) for r in parts["rule"].to_numpy(dtype=object)]  # read where named only
+    names = tuple(sorted({r for r, ok in zip(labels, named & picked, strict=True) if ok}))
+    code = {name: i for i, name in enumerate(names)}
+    rules = [code.get(r, -1) if ok else -1 for r, ok in zip(labels, named, strict=True)]
+    part_records = PartRecords(
+        parts["fed_at"].to_numpy(dtype=float),
+        np.where(picked, np.nan_to_num(robot, nan=0.0) - 1, -1).astype(np.int64),
+        np.array(rules, dtype=np.int64),
+        names,
+        parts["decided_at"].to_numpy(dtype=float),
+        parts["placed_at"].to_numpy(dtype=float),
+        picked,
+    )
+    state = {name: i for i, name in enumerate(SPAN_STATES)}
+    return part_records, SpanRecords(
+        spans["robot"].to_numpy(dtype=np.int64) - 1,
+        np.array([state[s] for s in spans["state"]], dtype=np.int64),
+        spans["start"].to_numpy(dtype=float),
+        spans["end"].to_numpy(dtype=float),
+    )
+
+
+def clipped(start: np.ndarray, end: np.ndarray, w0: float, w1: float) -> np.ndarray:
     """Length of each interval [start, end] inside [w0, w1]."""
     s = np.maximum(np.asarray(start, dtype=float), w0)
     e = np.minimum(np.asarray(end, dtype=float), w1)
@@ -59,32 +143,29 @@ def robot_capacity(spec: RobotSpec) -> float:
     )
 
 
-def state_times(
-    parts: pd.DataFrame, spans: pd.DataFrame, n: int, w0: float, w1: float
-) -> np.ndarray:
+def state_times(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) -> np.ndarray:
     """(n robots x STATES) seconds spent in each state inside the window."""
     out = np.zeros((n, len(STATES)))
-    picked = parts[parts["outcome"] == "picked"]
-    if len(picked):
-        busy = clipped(picked["decided_at"], picked["placed_at"], w0, w1)
-        np.add.at(out[:, 0], picked["robot"].to_numpy(dtype=np.int64) - 1, busy)
-    if len(spans):
-        lengths = clipped(spans["start"], spans["end"], w0, w1)
-        rob = spans["robot"].to_numpy(dtype=np.int64) - 1
+    picked = parts.picked
+    if picked.any():
+        busy = clipped(parts.decided_at[picked], parts.placed_at[picked], w0, w1)
+        np.add.at(out[:, 0], parts.robot[picked], busy)
+    if len(spans.state):
+        lengths = clipped(spans.start, spans.end, w0, w1)
         for j, state in enumerate(STATES):
-            mask = (spans["state"] == ("interrupted" if state == "busy" else state)).to_numpy()
-            np.add.at(out[:, j], rob[mask], lengths[mask])
+            mask = spans.state == SPAN_STATES.index("interrupted" if state == "busy" else state)
+            np.add.at(out[:, j], spans.robot[mask], lengths[mask])
         # blocked time sits inside the busy cycle span: move it out of busy
         out[:, 0] -= out[:, STATES.index("blocked")]
     return out
 
 
-def welch_series(parts: pd.DataFrame, duration: float, bins: int = WELCH_BINS) -> list[float]:
+def welch_series(parts: PartRecords, duration: float, bins: int = WELCH_BINS) -> list[float]:
     """G (%) of the parts fed in each of ``bins`` equal bins of [0, duration)."""
-    fed = parts["fed_at"].to_numpy(dtype=float)
+    fed = parts.fed_at
     inside = (fed >= 0) & (fed < duration)
     k = np.minimum((fed[inside] / duration * bins).astype(np.int64), bins - 1)
-    picked = (parts["outcome"] == "picked").to_numpy()[inside]
+    picked = parts.picked[inside]
     n = np.bincount(k, minlength=bins)
     hit = np.bincount(k, weights=picked.astype(float), minlength=bins)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -92,9 +173,25 @@ def welch_series(parts: pd.DataFrame, duration: float, bins: int = WELCH_BINS) -
     return [round(float(x), 3) for x in g]
 
 
+def decision_counts(
+    parts: PartRecords, win: np.ndarray, spans: SpanRecords, w0: float, w1: float
+) -> dict[str, int]:
+    """Picks of the window by rule ("?" without a name) and NooPs that started in it."""
+    picked = win & parts.picked
+    found = np.bincount(parts.rule[picked] + 1, minlength=len(parts.rule_names) + 1)
+    labels = ("?", *parts.rule_names)
+    rules: dict[str, int] = {}
+    for c in np.flatnonzero(found):
+        rules[labels[c]] = rules.get(labels[c], 0) + int(found[c])
+    start = spans.start
+    noops = (spans.state == SPAN_STATES.index("noop")) & (start >= w0) & (start < w1)
+    rules["NooP"] = int(noops.sum())
+    return {k: rules[k] for k in sorted(rules)}
+
+
 def compute_kpis(
-    parts: pd.DataFrame,
-    spans: pd.DataFrame,
+    parts: PartRecords,
+    spans: SpanRecords,
     specs: Sequence[RobotSpec],
     warmup: float,
     duration: float,
@@ -103,15 +200,15 @@ def compute_kpis(
     n = len(specs)
     w0, w1 = warmup, duration
     span = w1 - w0
-    win = parts[(parts["fed_at"] >= w0) & (parts["fed_at"] < w1)]
-    presented = len(win)
-    is_picked = (win["outcome"] == "picked").to_numpy()
+    win = (parts.fed_at >= w0) & (parts.fed_at < w1)
+    presented = int(win.sum())
+    is_picked = parts.picked[win]
     picked = int(is_picked.sum())
-    robot_of = win["robot"].to_numpy(dtype=float, na_value=np.nan) - 1  # 0-based here
-    picks = np.bincount(robot_of[is_picked].astype(np.int64), minlength=n)[:n]
+    robot_of = np.where(parts.picked, parts.robot, -1)[win]
+    picks = np.bincount(robot_of[is_picked], minlength=n)[:n]
     states = state_times(parts, spans, n, w0, w1)
     nominal = np.array([robot_capacity(s) for s in specs])
-    cycle_all = (win["placed_at"] - win["decided_at"]).to_numpy()
+    cycle_all = parts.placed_at[win] - parts.decided_at[win]
     busy = states[:, 0]
     worked = (busy > 0) & (picks > 0)
     caps = np.where(worked, picks / np.where(worked, busy, 1.0), nominal)
@@ -142,9 +239,6 @@ def compute_kpis(
                 "nominal_capacity": float(nominal[i]),
             }
         )
-    noops = spans[(spans["state"] == "noop") & (spans["start"] >= w0) & (spans["start"] < w1)]
-    rules = win.loc[is_picked, "rule"].fillna("?").value_counts().to_dict()
-    rules["NooP"] = len(noops)
     return {
         "gripping_rate": 100.0 * picked / presented if presented else math.nan,
         "parts_presented": presented,
@@ -159,11 +253,22 @@ def compute_kpis(
         "cycle_time_p50": float(np.percentile(cycles, 50)) if len(cycles) else math.nan,
         "cycle_time_p95": float(np.percentile(cycles, 95)) if len(cycles) else math.nan,
         "cycle_time_max": float(cycles.max()) if len(cycles) else math.nan,
-        "decisions": {str(k): int(v) for k, v in sorted(rules.items())},
+        "decisions": decision_counts(parts, win, spans, w0, w1),
         "window": [w0, w1],
         "welch_gripping_rate": welch_series(parts, w1),
         "robots": robots,
     }
+
+
+def table_kpis(
+    parts: pd.DataFrame,
+    spans: pd.DataFrame,
+    specs: Sequence[RobotSpec],
+    warmup: float,
+    duration: float,
+) -> dict[str, Any]:
+    """:func:`compute_kpis` of record tables (``Recorder.parts_frame`` / ``spans_frame``)."""
+    return compute_kpis(*table_records(parts, spans), specs, warmup, duration)
 
 
 def flat_kpis(kpis: dict[str, Any]) -> dict[str, Any]:

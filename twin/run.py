@@ -9,7 +9,7 @@ from typing import Any
 import pandas as pd
 
 from twin.decision import Policy
-from twin.kpis import compute_kpis
+from twin.kpis import compute_kpis, recorder_records
 from twin.line import Line
 from twin.scenario import Scenario
 
@@ -56,7 +56,8 @@ def simulate(
     rec.close_open_spans(line.now)  # idempotent; for Line subclasses with their own run()
     parts = rec.parts_frame(line.belt, line.last_end)
     spans = rec.spans_frame()
-    kpis = compute_kpis(parts, spans, line.specs, scenario.warmup, line.duration)
+    records = recorder_records(rec, line.belt.fed)
+    kpis = compute_kpis(*records, line.specs, scenario.warmup, line.duration)
     name = str(policy_name or getattr(policy, "name", type(policy).__name__))
     kpis = {
         "scenario": scenario.name,

@@ -17,7 +17,12 @@ import pandas as pd
 
 from pnp_twin.studies.execute import ID_COLUMNS, simulate_spec
 from pnp_twin.studies.plan import RunSpec, StudyPlan
-from pnp_twin.studies.summary import best_policies, paired_differences, summarise
+from pnp_twin.studies.summary import (
+    best_policies,
+    paired_differences,
+    showcase_point,
+    summarise,
+)
 from twin.output import versions, write_json, write_table
 
 PACKAGES = ("pnp-twin", "simpy", "numpy", "pandas", "plotly")  # what a result depends on
@@ -91,12 +96,15 @@ def write_records(folder: Path, spec: RunSpec) -> None:
 
 
 def representative(plan: StudyPlan, best: pd.DataFrame) -> RunSpec:
-    """Point 0, replication 0, the best policy there."""
-    policy = str(best.iloc[0]["policy"]) if len(best) else plan.policies[0]
+    """Replication 0 of the run the report shows up close (:func:`showcase_point`: the base
+    line with its best policy; point 0 and the first policy when there is no best table)."""
+    point, policy = 0, plan.policies[0]
+    if len(best):
+        point, policy = showcase_point(best, plan.grid, plan.scenario.model_dump(mode="json"))
     for spec in plan.specs():
-        if spec.point == 0 and spec.replication == 0 and spec.policy == policy:
+        if spec.point == point and spec.replication == 0 and spec.policy == policy:
             return spec
-    raise LookupError(f"no run of point 0 with policy {policy}")
+    raise LookupError(f"no run of point {point} with policy {policy}")
 
 
 def meta(plan: StudyPlan, kind: str, **extra: Any) -> dict[str, Any]:

@@ -208,27 +208,21 @@ def test_random_lines_are_identical(case: tuple[Scenario, str, int]) -> None:
     assert math.isnan(kpis["gripping_rate"]) or 0.0 <= kpis["gripping_rate"] <= 100.0
 
 
-def test_array_kpis_mirror_the_twin_kpis() -> None:
-    """The fast engine's KPIs from arrays equal compute_kpis on the tables (when current)."""
+def test_kpis_from_the_engine_arrays_equal_kpis_from_its_tables() -> None:
+    """One KPI code: the fast engine's arrays and its record tables give the same KPIs."""
     from twin.fast.engine import FastLine
-    from twin.fast.kpis import array_kpis, mirror_is_current
-    from twin.kpis import compute_kpis
+    from twin.kpis import compute_kpis, table_kpis
 
-    if not mirror_is_current():
-        pytest.skip(
-            "twin/kpis.py or twin/records.py changed since twin/fast/kpis.py was checked: "
-            "the fast engine computes KPIs from the tables; re-check the mirror and update "
-            "twin.fast.kpis.MIRRORS (twin.fast.kpis.source_digests())"
-        )
     for name, rule in [("breakdowns", "SIRO"), ("paper_baseline", "SPT"), ("trace_replay", "LD")]:
         sc = scenario(name, termination="t_any", **{"bins.capacity": 5, "bins.change_time": 1.0})
         line = FastLine(sc, make_policy(rule, sc.robots.count))
         line.run()
         rec = line.recorder()
         parts, spans = rec.parts_frame(line.belt, line.last_end), rec.spans_frame()
-        ref = compute_kpis(parts, spans, line.specs, sc.warmup, line.duration)
-        got = array_kpis(line, sc.warmup, line.duration)
+        ref = table_kpis(parts, spans, line.specs, sc.warmup, line.duration)
+        got = compute_kpis(*line.kpi_records(), line.specs, sc.warmup, line.duration)
         assert list(got) == list(ref) and _kpi_text(got) == _kpi_text(ref)
+        assert ref["parts_picked"] > 0 and ref["decisions"][rule] == ref["parts_picked"]
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)

@@ -1,7 +1,8 @@
-"""compute_kpis on hand-built record tables, with every figure worked out by hand."""
+"""The KPIs of hand-built record tables (turned into the KPIs' arrays), worked out by hand."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -11,7 +12,8 @@ import pytest
 from policies import make_policy
 from twin import simulate
 from twin.decision import RobotSpec
-from twin.kpis import compute_kpis, flat_kpis
+from twin.kpis import flat_kpis, table_kpis
+from twin.line import robot_specs
 from twin.records import PART_COLUMNS, SPAN_COLUMNS
 
 NAN = math.nan
@@ -56,7 +58,7 @@ def spans_table() -> pd.DataFrame:
 
 @pytest.fixture()
 def kpis() -> dict:
-    return compute_kpis(parts_table(), spans_table(), SPECS, WARMUP, DURATION)
+    return table_kpis(parts_table(), spans_table(), SPECS, WARMUP, DURATION)
 
 
 def test_gripping_rate_counts_parts_fed_in_the_window(kpis) -> None:
@@ -132,11 +134,34 @@ def test_flat_row(kpis) -> None:
 
 def test_an_empty_window_gives_nan_rates_not_errors() -> None:
     parts = parts_table().iloc[[0]]  # only a part fed before the window
-    k = compute_kpis(parts, spans_table().iloc[:0], SPECS, WARMUP, DURATION)
+    k = table_kpis(parts, spans_table().iloc[:0], SPECS, WARMUP, DURATION)
     assert k["parts_presented"] == 0
     assert math.isnan(k["gripping_rate"]) and math.isnan(k["cycle_time_mean"])
     assert k["throughput"] == 0.0
     assert k["decisions"] == {"NooP": 0}
+
+
+def test_a_pick_without_a_rule_name_counts_as_question_mark() -> None:
+    parts = parts_table()
+    parts.loc[2, "rule"] = None  # robot 2's pick of part 2
+    k = table_kpis(parts, spans_table(), SPECS, WARMUP, DURATION)
+    assert k["decisions"] == {"?": 1, "NooP": 1, "SD": 2}
+
+
+def test_a_run_and_its_tables_give_the_same_kpis(make_scenario) -> None:
+    # the SimPy run computes its KPIs from the Recorder's arrays, not from its tables: the
+    # tables read back must give the same figures (bit for bit), breakdowns and box changes
+    # included so spans of every state occur
+    sc = make_scenario(
+        {"robots.mtbf": 20.0, "robots.mttr": 2.0, "bins.capacity": 5, "bins.change_time": 1.0}
+    )
+    r = simulate(sc, make_policy("SIRO"))
+    assert set(r.spans["state"]) == {"wait", "interrupted", "noop", "blocked", "down"}
+    w0, w1 = r.kpis["window"]
+    ref = table_kpis(r.parts, r.spans, robot_specs(sc), w0, w1)
+    got = {k: v for k, v in r.kpis.items() if k in ref}
+    assert list(got) == list(ref)
+    assert json.dumps(got) == json.dumps(ref)
 
 
 def test_kpis_of_a_real_run_are_consistent(make_scenario) -> None:

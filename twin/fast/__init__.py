@@ -12,7 +12,7 @@ learned HDQN, any other ``choose``) are not compiled: ``auto`` runs them on SimP
 Modules: :mod:`~twin.fast.mathlib` (CPython's float operations, bit for bit),
 :mod:`~twin.fast.layout` (state array columns), :mod:`~twin.fast.kernel` (the event loop),
 :mod:`~twin.fast.engine` (:class:`FastLine`: a run as arrays; ``start``/``advance``/``fork``
-copy a run at any instant), :mod:`~twin.fast.kpis` (KPIs from the arrays),
+copy a run at any instant; ``kpi_records`` hands its arrays to :mod:`twin.kpis`),
 :mod:`~twin.fast.run` (the RunResult).
 """
 

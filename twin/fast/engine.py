@@ -25,6 +25,7 @@ from twin.fast import layout as L
 from twin.fast import unsupported_reason
 from twin.fast.kernel import close_open_spans, run_events, start_robots
 from twin.feeder import Feeder
+from twin.kpis import SPAN_STATES, PartRecords, SpanRecords
 from twin.line import DRAIN_SLACK, robot_specs
 from twin.records import Recorder
 from twin.scenario import Scenario
@@ -218,6 +219,27 @@ class FastLine:
         return other
 
     # -- records ---------------------------------------------------------------------------
+    def kpi_records(self) -> tuple[PartRecords, SpanRecords]:
+        """The run's records as :func:`twin.kpis.compute_kpis` reads them, from the arrays."""
+        k = int(self.gs[L.NSPANS])
+        codes = np.array([SPAN_STATES.index(s) for s in L.SPAN_NAMES], dtype=np.int64)
+        parts = PartRecords(
+            fed_at=self.fed,
+            robot=self.rec_i[:, 0],
+            rule=self.rec_i[:, 1],  # a rule code of L.RULE_NAMES; -1 where not picked
+            rule_names=L.RULE_NAMES[:-1],
+            decided_at=self.rec_f[:, 0],
+            placed_at=self.rec_f[:, 2],
+            picked=~np.isnan(self.rec_f[:, 1]),
+        )
+        spans = SpanRecords(
+            robot=self.sp_i[:k, 0],
+            state=codes[self.sp_i[:k, 1]],
+            start=self.sp_f[:k, 0],
+            end=self.sp_f[:k, 1],
+        )
+        return parts, spans
+
     def recorder(self) -> Recorder:
         """The run's records in the twin's Recorder, so tables are built by the same code."""
         rec = Recorder(len(self.fed))  # defaults for every list, then the run's values

@@ -1,8 +1,9 @@
 """``simulate`` on the fast engine: the same RunResult as :func:`twin.run.simulate`.
 
-KPIs come straight from the engine's arrays (:mod:`twin.fast.kpis`) and the record tables
-(pandas) are built only when first read, so a study run that needs only the KPIs never
-builds them. Tables and KPIs are the SimPy engine's, value for value.
+KPIs come straight from the engine's arrays (:meth:`FastLine.kpi_records` into the twin's
+one :func:`twin.kpis.compute_kpis`) and the record tables (pandas) are built only when first
+read, so a study run that needs only the KPIs never builds them. Tables and KPIs are the
+SimPy engine's, value for value.
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ import pandas as pd
 
 from twin.decision import Policy
 from twin.fast.engine import FastLine
-from twin.fast.kpis import array_kpis, mirror_is_current
 from twin.kpis import compute_kpis
 from twin.records import Recorder
 from twin.run import RunResult
@@ -90,10 +90,7 @@ def simulate_fast(
     wall = time.perf_counter() - t0
     name = str(policy_name or getattr(policy, "name", type(policy).__name__))
     result = FastRunResult(line, name, {}, wall)
-    if mirror_is_current():
-        kpis = array_kpis(line, scenario.warmup, line.duration)
-    else:  # twin/kpis.py or records.py changed since the mirror was checked: use the tables
-        kpis = compute_kpis(result.parts, result.spans, line.specs, scenario.warmup, line.duration)
+    kpis = compute_kpis(*line.kpi_records(), line.specs, scenario.warmup, line.duration)
     result.kpis = {
         "scenario": scenario.name,
         "policy": name,
