@@ -74,7 +74,9 @@ class SpanRecords:
     end: np.ndarray  # float
 
 
-def recorder_records(rec: Recorder, fed_at: np.ndarray) -> tuple[PartRecords, SpanRecords]:
+def recorder_records(
+    rec: Recorder, fed_at: Sequence[float] | np.ndarray
+) -> tuple[PartRecords, SpanRecords]:
     """The KPIs' arrays of a SimPy run's Recorder (``fed_at``: the belt's feed times)."""
     names = tuple(sorted({r for r in rec.rule if r is not None}))
     code = {name: i for i, name in enumerate(names)}

@@ -141,7 +141,8 @@ def test_timeline_and_belt_come_from_the_records(sweep3: Path) -> None:
 def test_robots_figure_stacks_time_shares(sweep3: Path) -> None:
     study = load_study(sweep3)
     point, policy = layout.showcase_point(study)
-    assert policy == study.run["policy"] and point == {"robots.arm_speed": 2}
+    # the recorded run is the base line (the scenario's own arm speed, 3) with its best policy
+    assert policy == study.run["policy"] and point == {"robots.arm_speed": 3}
     fig = record_figures.robots_figure(study.results, point, policy)
     stacked = [t for t in fig.data if t.xaxis == "x"]
     totals = [sum(t.y[i] for t in stacked) for i in range(4)]
@@ -149,7 +150,7 @@ def test_robots_figure_stacks_time_shares(sweep3: Path) -> None:
     passed = next(t for t in fig.data if t.name.startswith("Passed on"))
     lost = next(t for t in fig.data if t.name.startswith("Lost"))
     runs = study.results[
-        (study.results["robots.arm_speed"] == 2) & (study.results["policy"] == policy)
+        (study.results["robots.arm_speed"] == 3) & (study.results["policy"] == policy)
     ]
     assert passed.y[0] == pytest.approx(runs["r1_passed_on"].mean()) and passed.y[3] == 0
     assert lost.y[3] == pytest.approx(runs["r4_lost"].mean())

@@ -150,11 +150,10 @@ def test_a_pick_without_a_rule_name_counts_as_question_mark() -> None:
 
 def test_a_run_and_its_tables_give_the_same_kpis(make_scenario) -> None:
     # the SimPy run computes its KPIs from the Recorder's arrays, not from its tables: the
-    # tables read back must give the same figures (bit for bit), breakdowns and box changes
-    # included so spans of every state occur
-    sc = make_scenario(
-        {"robots.mtbf": 20.0, "robots.mttr": 2.0, "bins.capacity": 5, "bins.change_time": 1.0}
-    )
+    # tables read back must give the same figures (bit for bit); breakdowns, box changes
+    # and t_any included so spans of every state occur
+    changes = {"robots.mtbf": 20.0, "robots.mttr": 2.0, "termination": "t_any"}
+    sc = make_scenario({**changes, "bins.capacity": 5, "bins.change_time": 1.0})
     r = simulate(sc, make_policy("SIRO"))
     assert set(r.spans["state"]) == {"wait", "interrupted", "noop", "blocked", "down"}
     w0, w1 = r.kpis["window"]
