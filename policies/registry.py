@@ -51,10 +51,11 @@ def make_policy(spec: str, n_robots: int | None = None) -> Policy:
         if entry is None:
             raise PolicyError(f"policy: unknown kind '{prefix}'; allowed {allowed()}")
         return _load(prefix.lower(), entry)(arg)
-    rules = [r.strip().upper() for r in text.split(",")]
-    for r in rules:
-        if r not in RULES:
-            raise PolicyError(f"policy: '{r or text}' is not a rule; allowed {allowed()}")
+    try:
+        rules = list(rule_names(text.split(",")))
+    except ValueError as e:
+        extra = "".join(f", {p}:ARG" for p in PREFIXED)
+        raise PolicyError(f"policy: {e}, a per-robot mix such as SPT,SPT,SPT,FIFO{extra}") from None
     if n_robots is not None and len(rules) not in (1, n_robots):
         raise PolicyError(
             f"policy: the mix '{text}' names {len(rules)} rules for {n_robots} robots; "

@@ -14,27 +14,30 @@ from pathlib import Path
 from reports.html import render
 from reports.layout import build_page
 from reports.load import ReportError, Study, load_study
+from reports.record_figures import Animation
 from reports.training import build_training_page
 from reports.training_load import is_training_folder, load_runs
 from twin.output import write_text
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ReportError", "Study", "build_report", "load_study", "render_report"]
+__all__ = ["Animation", "ReportError", "Study", "build_report", "load_study", "render_report"]
 
 
-def render_report(study_dir: Path | str) -> str:
+def render_report(study_dir: Path | str, animation: Animation | None = None) -> str:
     """The report of the study (or training run(s)) in ``study_dir`` as one HTML string."""
     if is_training_folder(study_dir):
         return render(build_training_page(load_runs(study_dir)))
-    return render(build_page(load_study(study_dir)))
+    return render(build_page(load_study(study_dir), animation))
 
 
-def build_report(study_dir: Path | str, out: Path | str | None = None) -> Path:
+def build_report(
+    study_dir: Path | str, out: Path | str | None = None, animation: Animation | None = None
+) -> Path:
     """Write the report of ``study_dir`` to ``out`` (default ``study_dir/report.html``)."""
     study_dir = Path(study_dir)
     target = Path(out) if out is not None else study_dir / "report.html"
-    page = render_report(study_dir)
+    page = render_report(study_dir, animation)
     if not target.parent.is_dir():
         raise ReportError(f"--out {target}: folder {target.parent} does not exist")
     write_text(page, target)

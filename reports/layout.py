@@ -31,8 +31,6 @@ from reports.text import (
 )
 
 TIMELINE_SECONDS = 20.0
-ANIMATION_SECONDS = 60.0  # the belt animation's window: a minute of the recorded run
-ANIMATION_STEP = 0.2  # s between frames
 MAX_POLICIES = 8  # one colour each in style.PALETTE
 KINDS = {"sweep": "Parameter sweep", "size": "Sizing study", "mix": "Rule-mix search"}
 
@@ -374,7 +372,10 @@ def welch_section(study: Study) -> Section | None:
     return Section("warmup", "Warm-up", esc(intro), [box, fig])
 
 
-def records_section(study: Study) -> Section | None:
+def records_section(
+    study: Study, animation: record_figures.Animation | None = None
+) -> Section | None:
+    animation = animation or record_figures.Animation()
     if study.parts is None or study.spans is None or study.run is None:
         return None
     scenario = study.run.get("scenario") or study.meta.get("scenario") or {}
@@ -389,8 +390,9 @@ def records_section(study: Study) -> Section | None:
     if t1 > t0:
         items.append(record_figures.timeline_figure(study.parts, study.spans, t0, t1, n))
     if len(study.parts):
-        seconds = max(min(ANIMATION_SECONDS, duration - t0), ANIMATION_STEP)
-        items.append(record_figures.belt_figure(study.parts, scenario, t0, seconds, ANIMATION_STEP))
+        items.append(
+            record_figures.animated_belt(study.parts, scenario, animation, warmup, duration)
+        )
     if not items:
         return None
     run = study.run
@@ -408,8 +410,9 @@ def records_section(study: Study) -> Section | None:
     return Section("run", "One run up close", esc(intro), items)
 
 
-def build_page(study: Study) -> Page:
-    """The report of ``study`` as a Page (sections in reading order)."""
+def build_page(study: Study, animation: record_figures.Animation | None = None) -> Page:
+    """The report of ``study`` as a Page (sections in reading order); ``animation``: the
+    stretch of the recorded run the belt animation covers (default a minute after warm-up)."""
     findings = "".join(f"<li>{esc(t)}</li>" for t in key_findings(study))
     notes = "".join(f'<p class="note">{esc(n)}</p>' for n in study.notes)
     summary = Section(
@@ -424,7 +427,7 @@ def build_page(study: Study) -> Page:
         heatmap_section(study),
         policy_section(study),
         robots_section(study),
-        records_section(study),
+        records_section(study, animation),
         welch_section(study),
         Section(
             "kpis",

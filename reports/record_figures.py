@@ -5,6 +5,7 @@ Pure functions from the records tables to plotly figures: no files, no simulatio
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -225,6 +226,34 @@ def belt_traces(parts: pd.DataFrame, belt_speed: float, t: float) -> list[go.Sca
             )
         )
     return out
+
+
+@dataclass(frozen=True)
+class Animation:
+    """Which stretch of a recorded run the belt animation covers: from ``start`` s (None:
+    the end of the warm-up) for ``seconds`` s, a frame every ``step`` s."""
+
+    start: float | None = None
+    seconds: float = 60.0
+    step: float = 0.2
+
+    def window(self, warmup: float, duration: float) -> tuple[float, float]:
+        """(t0, seconds) inside the recorded run [0, duration)."""
+        t0 = warmup if self.start is None else self.start
+        t0 = min(max(t0, 0.0), max(duration - self.step, 0.0))
+        return t0, max(min(self.seconds, duration - t0), self.step)
+
+
+def animated_belt(
+    parts: pd.DataFrame,
+    scenario: dict[str, Any],
+    animation: Animation,
+    warmup: float,
+    duration: float,
+) -> go.Figure:
+    """The belt figure over the chosen window of the run."""
+    t0, seconds = animation.window(warmup, duration)
+    return belt_figure(parts, scenario, t0, seconds, animation.step)
 
 
 def belt_figure(

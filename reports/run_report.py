@@ -19,8 +19,6 @@ from reports.text import fmt_pct, fmt_seconds
 from twin.output import write_text
 
 TIMELINE_SECONDS = 20.0
-ANIMATION_SECONDS = 60.0
-ANIMATION_STEP = 0.2
 
 
 def run_headline(kpis: Mapping[str, Any]) -> str:
@@ -93,6 +91,7 @@ def build_run_page(
     spans: pd.DataFrame,
     scenario: Mapping[str, Any],
     command: str = "",
+    animation: record_figures.Animation | None = None,
 ) -> Page:
     """The one-run report as a Page."""
     duration = float(scenario.get("duration") or kpis["window"][1])
@@ -111,9 +110,9 @@ def build_run_page(
     if t1 > t0:
         records.append(record_figures.timeline_figure(parts, spans, t0, t1, n))
     if len(parts):
-        seconds = max(min(ANIMATION_SECONDS, duration - t0), ANIMATION_STEP)
+        animation = animation or record_figures.Animation()
         records.append(
-            record_figures.belt_figure(parts, dict(scenario), t0, seconds, ANIMATION_STEP)
+            record_figures.animated_belt(parts, dict(scenario), animation, warmup, duration)
         )
     sections = [
         Section(
@@ -174,9 +173,10 @@ def build_run_report(
     scenario: Mapping[str, Any],
     out: Path | str,
     command: str = "",
+    animation: record_figures.Animation | None = None,
 ) -> Path:
     """Write the one-run report to ``out`` atomically; returns the path."""
-    page = build_run_page(kpis, parts, spans, scenario, command)
+    page = build_run_page(kpis, parts, spans, scenario, command, animation)
     return write_text(render(page), out)
 
 

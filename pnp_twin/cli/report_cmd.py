@@ -35,11 +35,24 @@ def report(
             show_default=False,
         ),
     ] = None,
+    animate_from: Annotated[
+        float | None,
+        typer.Option(
+            "--animate-from",
+            min=0.0,
+            help="Start of the belt animation, s of the recorded run (default: end of warm-up).",
+            show_default=False,
+        ),
+    ] = None,
+    animate_seconds: Annotated[
+        float,
+        typer.Option("--animate-seconds", min=0.2, max=3600.0, help="Length of the animation, s."),
+    ] = 60.0,
 ) -> None:
     """Build the self-contained HTML report of a study or training folder (opens offline)."""
     if out is not None and out.is_dir():
         raise UserError(f"--out {out}: is a folder; give a file name such as {out}/report.html")
-    from reports import build_report  # the front end imports reports; the core never does
+    from reports import Animation, build_report  # the front end imports reports
 
-    path = build_report(study_dir, out)
+    path = build_report(study_dir, out, Animation(animate_from, animate_seconds))
     typer.echo(f"report: {path}", err=True)

@@ -35,6 +35,7 @@ from pnp_twin.studies.plan import StudyError, StudyPlan, build_plan
 from pnp_twin.studies.runner import Options, Session, finish, open_session
 from pnp_twin.studies.seeds import search_rng
 from policies import RULES
+from policies.registry import rule_names
 from twin.output import write_json
 from twin.scenario import Scenario
 from twin.stats import t_interval
@@ -188,10 +189,10 @@ def run_mix(
     sweep = scenario.sweep
     if rules is None or len(rules) == 0:
         rules = list(sweep.policies) if sweep and sweep.policies else list(RULES)
-    rules = [r.strip().upper() for r in rules]
-    for r in rules:
-        if r not in RULES:
-            raise StudyError(f"mix: '{r}' is not a rule; allowed {', '.join(RULES)}")
+    try:
+        rules = list(rule_names(rules))
+    except ValueError as e:
+        raise StudyError(f"mix: {e}") from None
     if len(set(rules)) != len(rules):
         raise StudyError(f"mix: the rules {rules} name a rule twice")
     if budget < 1:

@@ -333,6 +333,25 @@ def test_the_belt_says_will_be_missed_and_animates_a_minute(sweep3: Path) -> Non
     assert times[0] == 10.0 and times[-1] == pytest.approx(60.0)  # the run ends at 60 s
 
 
+def test_the_belt_animation_covers_the_chosen_window(sweep3: Path, tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from pnp_twin.cli import app
+    from reports.record_figures import Animation
+
+    page = layout.build_page(load_study(sweep3), Animation(start=30.0, seconds=10.0, step=0.5))
+    belt = next(i for s in page.sections for i in s.items if getattr(i, "frames", None))
+    times = [float(f.name) for f in belt.frames]
+    assert times[0] == 30.0 and times[-1] == pytest.approx(40.0) and len(times) == 21
+    out = tmp_path / "r.html"
+    args = ["report", str(sweep3), "--out", str(out), "--animate-from", "50"]
+    result = CliRunner().invoke(app, [*args, "--animate-seconds", "5"])
+    assert result.exit_code == 0, result.output
+    html = out.read_text()
+    assert '"name":"50.0"' in html and '"name":"55.0"' in html and '"name":"55.2"' not in html
+    assert '"name":"30.0"' not in html
+
+
 def test_print_css_lets_every_row_onto_paper(grid3d: Path) -> None:
     html = render_report(grid3d)
     css = html.split("@media print {", 1)[1]
