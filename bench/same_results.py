@@ -47,7 +47,10 @@ SCENARIOS = [
     "rule_mix",
 ]
 CHECKPOINTS = ["async", "async_rollout", "single", "sync"]
-VOLATILE = ("wall_time", "wall_s", "elapsed", "started_at", "finished_at", "created", "versions")
+# run metadata, not results: timings, dates, versions, and which engine ran (issue 12)
+VOLATILE = (
+    "wall_time", "wall_s", "elapsed", "started_at", "finished_at", "created", "versions", "engine",
+)
 
 # The learning interface, run in each tree (module paths moved with the layers).
 LEARNING_PROBE = """
