@@ -211,14 +211,14 @@ def kpi_table(result: RunResult) -> Table:
 def robot_table(kpis: dict[str, Any]) -> Table:
     """One row per robot: picks, throughput and where its time went."""
     t = Table(
-        title="Robots (upstream first; time shares in %)",
+        title="Robots (upstream first; workspace x range in m, time shares in %)",
         box=box.SIMPLE_HEAVY,
         pad_edge=False,
         collapse_padding=True,
         caption="passed on = left the workspace unpicked, picked downstream; lost = left it "
         "unpicked, reached the return conveyor",
     )
-    for col in ("robot", "workspace m", "picks", "parts/s", "util", "NooP", "wait", "blocked"):
+    for col in ("robot", "x range", "picks", "parts/s", "util", "NooP", "wait", "blocked"):
         t.add_column(col, justify="right")
     for col in ("down", "passed on", "lost"):
         t.add_column(col, justify="right")
