@@ -11,6 +11,7 @@ trace has its trace checked when it is loaded (:func:`twin.trace.check_replay`).
 from __future__ import annotations
 
 import copy
+import functools
 import logging
 import tomllib
 import typing
@@ -19,7 +20,6 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
@@ -46,17 +46,26 @@ MAX_BYTES = 1_000_000  # a scenario is a page of settings; anything larger is a 
 INTERNAL = {"source_dir": "set by the loader (the scenario file's folder), not by the user"}
 
 
-class SafeNoAliasLoader(yaml.SafeLoader):
+@functools.cache
+def safe_no_alias_loader() -> type:
     """PyYAML's safe loader, refusing aliases: a scenario never needs them, and a chain of
-    them (the "billion laughs") expands a small file into gigabytes."""
+    them (the "billion laughs") expands a small file into gigabytes. (Built on first use, so
+    TOML scenarios never import PyYAML.)"""
+    import yaml
 
-    def compose_node(self, parent: Any, index: Any) -> Any:
-        if self.check_event(yaml.AliasEvent):
-            event = self.peek_event()
-            raise yaml.composer.ComposerError(
-                None, None, "aliases (*name) are not allowed; write the value out", event.start_mark
-            )
-        return super().compose_node(parent, index)
+    class SafeNoAliasLoader(yaml.SafeLoader):
+        def compose_node(self, parent: Any, index: Any) -> Any:
+            if self.check_event(yaml.AliasEvent):
+                event = self.peek_event()
+                raise yaml.composer.ComposerError(
+                    None,
+                    None,
+                    "aliases (*name) are not allowed; write the value out",
+                    event.start_mark,
+                )
+            return super().compose_node(parent, index)
+
+    return SafeNoAliasLoader
 
 
 def shipped_scenarios() -> list[str]:
@@ -84,12 +93,21 @@ def find_scenario(name_or_path: str | Path) -> Path:
 
 
 def _parse(text: str, path: Path, suffix: str) -> Any:
-    try:
-        if suffix == ".toml":
+    if suffix == ".toml":
+        try:
             return tomllib.loads(text)
-        return yaml.load(text, Loader=SafeNoAliasLoader)  # noqa: S506 (a safe loader)
-    except tomllib.TOMLDecodeError as e:
-        raise ScenarioError(f"scenario: '{path}' is not valid TOML: {clip(str(e), 120)}") from None
+        except tomllib.TOMLDecodeError as e:
+            raise ScenarioError(
+                f"scenario: '{path}' is not valid TOML: {clip(str(e), 120)}"
+            ) from None
+        except RecursionError:
+            raise ScenarioError(
+                f"scenario: '{path}' is nested too deeply to be a scenario"
+            ) from None
+    import yaml
+
+    try:
+        return yaml.load(text, Loader=safe_no_alias_loader())  # noqa: S506 (a safe loader)
     except yaml.YAMLError as e:
         first = getattr(e, "problem", None) or (str(e).splitlines() or ["parse error"])[0]
         mark = getattr(e, "problem_mark", None)
@@ -126,8 +144,10 @@ def parse_value(text: str) -> Any:
             return kind(text)
         except ValueError:
             pass
+    import yaml
+
     try:
-        value = yaml.load(text, Loader=SafeNoAliasLoader)  # noqa: S506 (a safe loader)
+        value = yaml.load(text, Loader=safe_no_alias_loader())  # noqa: S506 (a safe loader)
     except (yaml.YAMLError, RecursionError):
         return text
     if isinstance(value, list):  # [nan, 1e3]: YAML reads these as text, we as numbers

@@ -14,17 +14,20 @@ import os
 import platform
 import re
 import secrets
+import sys
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 import tomli_w
 
 from twin.errors import UserError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 TABLE_SUFFIXES = (".csv", ".parquet")
 TEMPORARY = re.compile(r"\..+\.[0-9a-f]{12}\.tmp")  # atomic_path's names: .NAME.HEX.tmp
@@ -130,7 +133,8 @@ def jsonable(obj: Any, keep_nan: bool = False) -> Any:
         obj = obj.item()
     if isinstance(obj, float) and not math.isfinite(obj) and not keep_nan:
         return None
-    if obj is pd.NA:
+    pandas = sys.modules.get("pandas")  # pd.NA exists only if pandas was imported
+    if pandas is not None and obj is pandas.NA:
         return None
     if isinstance(obj, Path):
         return str(obj)

@@ -8,12 +8,15 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from twin.belt import Belt
 from twin.geometry import exit_time
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 PART_COLUMNS = [
     "part",
@@ -104,6 +107,8 @@ class Recorder:
         exits = np.where(np.isnan(missed), exit_time(fed, last_workspace_end, belt.speed), missed)
         left = np.where(is_picked, picked, exits)
         robot = np.asarray(self.robot, dtype=np.int64)
+        import pandas as pd  # only when a table is asked for
+
         df = pd.DataFrame(
             {
                 "part": np.arange(len(fed), dtype=np.int64),
@@ -125,10 +130,14 @@ class Recorder:
         return df
 
     def spans_frame(self) -> pd.DataFrame:
+        import pandas as pd
+
         df = pd.DataFrame(self.spans, columns=SPAN_COLUMNS)
         df["robot"] = df["robot"].astype(np.int64) + 1
         return df
 
     def decisions_frame(self) -> pd.DataFrame:
         rows = [(r + 1, rule, n) for (r, rule), n in sorted(self.decisions.items())]
+        import pandas as pd
+
         return pd.DataFrame(rows, columns=["robot", "rule", "count"])

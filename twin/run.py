@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from twin.decision import Policy
 from twin.kpis import compute_kpis, recorder_records
 from twin.line import Line
 from twin.scenario import Scenario
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 @dataclass
@@ -28,6 +30,55 @@ class RunResult:
     wall_time: float
     sim_time: float
     meta: dict[str, Any] = field(default_factory=dict)
+
+
+class LazyRunResult(RunResult):
+    """A RunResult whose tables are built (pandas imported) only when first read."""
+
+    def __init__(
+        self,
+        base: dict[str, Any],
+        builders: dict[str, Callable[[], pd.DataFrame]],
+    ) -> None:
+        self._builders = builders
+        self._tables: dict[str, pd.DataFrame] = {}
+        for key, value in base.items():
+            setattr(self, key, value)
+
+    def _table(self, name: str) -> pd.DataFrame:
+        if name not in self._tables:
+            self._tables[name] = self._builders[name]()
+        return self._tables[name]
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled with its tables built (the builders hold the live run)."""
+        for name in self._builders:
+            self._table(name)
+        return {**self.__dict__, "_builders": {}}
+
+    @property  # type: ignore[override]
+    def parts(self) -> pd.DataFrame:
+        return self._table("parts")
+
+    @parts.setter
+    def parts(self, value: pd.DataFrame) -> None:
+        self._tables["parts"] = value
+
+    @property  # type: ignore[override]
+    def spans(self) -> pd.DataFrame:
+        return self._table("spans")
+
+    @spans.setter
+    def spans(self, value: pd.DataFrame) -> None:
+        self._tables["spans"] = value
+
+    @property  # type: ignore[override]
+    def decisions(self) -> pd.DataFrame:
+        return self._table("decisions")
+
+    @decisions.setter
+    def decisions(self, value: pd.DataFrame) -> None:
+        self._tables["decisions"] = value
 
 
 def simulate(
@@ -54,8 +105,7 @@ def simulate(
     wall = time.perf_counter() - t0
     rec = line.recorder
     rec.close_open_spans(line.now)  # idempotent; for Line subclasses with their own run()
-    parts = rec.parts_frame(line.belt, line.last_end)
-    spans = rec.spans_frame()
+    belt, last_end = line.belt, line.last_end
     records = recorder_records(rec, line.belt.fed)
     kpis = compute_kpis(*records, line.specs, scenario.warmup, line.duration)
     name = str(policy_name or getattr(policy, "name", type(policy).__name__))
@@ -66,7 +116,18 @@ def simulate(
         "termination": scenario.termination,
         **kpis,
     }
-    return RunResult(
-        scenario, name, line.seed, kpis, parts, spans, rec.decisions_frame(), wall, line.now,
-        meta={"engine": "simpy"},
-    )
+    base = {
+        "scenario": scenario,
+        "policy": name,
+        "seed": line.seed,
+        "kpis": kpis,
+        "wall_time": wall,
+        "sim_time": line.now,
+        "meta": {"engine": "simpy"},
+    }
+    builders = {
+        "parts": lambda: rec.parts_frame(belt, last_end),
+        "spans": rec.spans_frame,
+        "decisions": rec.decisions_frame,
+    }
+    return LazyRunResult(base, builders)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import errno
 import logging
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Annotated, Any, NoReturn
 
 import typer
@@ -109,7 +109,34 @@ def _report(message: str, code: int) -> int:
     return code
 
 
-app = typer.Typer(
+class LazyTyper(typer.Typer):
+    """A Typer whose command modules are imported when its commands are first listed.
+
+    ``loader`` (set by :mod:`pnp_twin.cli`) imports the modules that register commands; it
+    runs once, the first time Typer reads :attr:`registered_commands`, so ``pnp-twin run``
+    imports only ``run_cmd`` and its dependencies, not those of every other command.
+    ``order`` keeps ``--help`` listing the commands in the same order whatever was imported
+    first.
+    """
+
+    loader: Callable[[], None] | None = None
+    order: Sequence[str] = ()
+
+    @property  # type: ignore[override]
+    def registered_commands(self) -> list[Any]:
+        loader, self.loader = self.loader, None
+        if loader is not None:
+            loader()
+        rank = {name: i for i, name in enumerate(self.order)}
+        self._commands.sort(key=lambda c: rank.get(c.name, len(rank)))
+        return self._commands
+
+    @registered_commands.setter
+    def registered_commands(self, value: list[Any]) -> None:
+        self._commands = value
+
+
+app = LazyTyper(
     name="pnp-twin",
     cls=OneLineErrors,
     help="Digital twin of multi-robot conveyor pick-and-place lines.",

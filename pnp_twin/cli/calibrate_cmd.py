@@ -24,6 +24,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.studies.calibrate import Problem, calibrate, check_problem
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.calibrate_fields import check_distinct, parse_fit
@@ -166,6 +167,14 @@ def calibrate_cmd(
         int | None, typer.Option("--workers", "-w", help="Parallel runs. Default: CPU count.")
     ] = None,
     sets: SetOpt = None,
+    engine: Annotated[
+        Engine,
+        typer.Option(
+            "--engine",
+            help="Simulation engine: simpy, fast (compiled) or auto (fast where it can); "
+            "the fit is the same with each.",
+        ),
+    ] = Engine.auto,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     fresh: Annotated[
         bool, typer.Option("--fresh", help="Discard the journal, simulate anew.")
@@ -195,7 +204,7 @@ def calibrate_cmd(
         bar.update(task, completed=done, total=max(done, max_evals), best=f"{best:.4g}")
 
     with bar:
-        cal = calibrate(problem, out, workers=w, progress=update)
+        cal = calibrate(problem, out, workers=w, progress=update, engine=engine.value)
     command = shlex.join(["pnp-twin", *sys.argv[1:]])
     info = write_outputs(cal, out, scenario, overrides, command)
     if not no_report:

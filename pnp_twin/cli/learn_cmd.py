@@ -320,6 +320,7 @@ def _train_rollout(kw: dict[str, Any]) -> None:
         eval_seeds=kw["eval_seeds"],
         resume=kw["resume"],
         overrides=overrides,
+        engine=kw["engine"],
     )
     args.settings.check()  # a bad rule set fails before the progress display
     with TrainProgress("train async (rollout)", episodes) as show:
@@ -365,6 +366,14 @@ def evaluate_cmd(
         ),
     ] = None,
     sets: SetOpt = None,
+    engine: Annotated[
+        str,
+        typer.Option(
+            "--engine",
+            help="Engine of the rule and mix runs: simpy, fast or auto (same results); the "
+            "trained policy always runs on simpy.",
+        ),
+    ] = "auto",
 ) -> None:
     """Compare a trained policy with every rule and the best rule mix, paired by seed."""
     _need_torch()
@@ -381,8 +390,16 @@ def evaluate_cmd(
     if out is not None and out.exists() and not out.is_dir():
         fail(f"--out: '{out}' is a file; give a folder (e.g. the run folder)")
     make_policy(policy, line.robots.count)  # a broken model fails before any run
+    if engine not in ("simpy", "fast", "auto"):
+        fail(f"--engine: '{engine}' is not an engine; allowed simpy, fast, auto")
     result = compare(
-        line, reference, seeds=seeds, first_seed=first_seed, mix=mix, duration=duration
+        line,
+        reference,
+        seeds=seeds,
+        first_seed=first_seed,
+        mix=mix,
+        duration=duration,
+        engine=engine,
     )
     stdout_console().print(_comparison_table(result, line.name))
     if out is not None:

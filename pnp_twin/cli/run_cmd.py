@@ -16,7 +16,6 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-import yaml
 from rich import box
 from rich.table import Table
 
@@ -298,6 +297,8 @@ def validate(
             )
     data = resolved_mapping(scn)
     if fmt is TextFormat.yaml:
+        import yaml
+
         text = yaml.safe_dump(data, sort_keys=False, default_flow_style=False, width=100)
     else:
         text = dumps_toml(data)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
@@ -50,17 +50,31 @@ class Comparison:
     seeds: list[int]
     reference: str
     scenario: Scenario | None = None
+    engines: dict[str, str] = field(default_factory=dict)  # policy -> the engine that ran it
 
 
 def gripping_rates(
-    scenario: Scenario, make: Callable[[], Policy], seeds: Sequence[int]
+    scenario: Scenario, make: Callable[[], Policy], seeds: Sequence[int], engine: str = "simpy"
 ) -> list[float]:
-    """Gripping rate of a fresh policy per seed."""
-    return [simulate(scenario, make(), seed=s).kpis["gripping_rate"] for s in seeds]
+    """Gripping rate of a fresh policy per seed (``engine``: see :func:`twin.run.simulate`)."""
+    return _rates(scenario, make, seeds, engine)[0]
+
+
+def _rates(
+    scenario: Scenario, make: Callable[[], Policy], seeds: Sequence[int], engine: str
+) -> tuple[list[float], str]:
+    """Gripping rate per seed and the engine that ran (the last run's; a policy runs on one)."""
+    results = [simulate(scenario, make(), seed=s, engine=engine) for s in seeds]
+    ran = results[-1].meta.get("engine", "simpy") if results else engine
+    return [r.kpis["gripping_rate"] for r in results], str(ran)
 
 
 def search_mix(
-    scenario: Scenario, seeds: Sequence[int], rules: Sequence[str] = tuple(RULES), sweeps: int = 2
+    scenario: Scenario,
+    seeds: Sequence[int],
+    rules: Sequence[str] = tuple(RULES),
+    sweeps: int = 2,
+    engine: str = "simpy",
 ) -> str:
     """The best per-robot mix found by coordinate ascent from the best uniform rule."""
     n = scenario.robots.count
@@ -69,7 +83,7 @@ def search_mix(
     def score(mix: tuple[str, ...]) -> float:
         if mix not in cache:
             cache[mix] = float(
-                np.mean(gripping_rates(scenario, lambda: make_policy(",".join(mix)), seeds))
+                np.mean(gripping_rates(scenario, lambda: make_policy(",".join(mix)), seeds, engine))
             )
         return cache[mix]
 
@@ -97,11 +111,15 @@ def compare(
     termination: str | None = None,
     tuning_seeds: int = 3,
     confidence: float = 0.95,
+    engine: str = "simpy",
 ) -> Comparison:
     """Compare the HDQN in folder ``hdqn`` (or an ``sb3:MODEL.zip`` spec) with every rule
     and the best mix on ``seeds`` seeds.
 
     ``duration`` and ``termination`` override the scenario's for every policy alike.
+    ``engine`` (simpy | fast | auto, same results) runs the rules and mixes; the trained
+    policy is a Python object, so auto runs it on simpy (and fast refuses it).
+    ``Comparison.engines`` says which engine ran each policy.
     """
     changes: dict[str, object] = {}
     if duration is not None:
@@ -112,12 +130,16 @@ def compare(
     seed_list = list(range(first_seed, first_seed + seeds))
     if mix is None:
         tuning = [TUNING_SEED_BASE + i for i in range(tuning_seeds)]
-        mix = search_mix(line, tuning)
+        mix = search_mix(line, tuning, engine=engine)
     reference, make_trained = trained_policy(hdqn)
     makers: dict[str, Callable[[], Policy]] = {reference: make_trained}
     for r in [*RULES, mix]:
         makers[r if r in RULES else f"mix {r}"] = partial(make_policy, r)
-    g = {name: gripping_rates(line, make, seed_list) for name, make in makers.items()}
+    engines: dict[str, str] = {}
+    g: dict[str, list[float]] = {}
+    for name, make in makers.items():
+        asked = "auto" if name == reference and engine == "fast" else engine
+        g[name], engines[name] = _rates(line, make, seed_list, asked)
     ref = np.asarray(g[reference])
     rows = []
     for name, values in g.items():
@@ -143,7 +165,8 @@ def compare(
         ],
         columns=["policy", "seed", "gripping_rate"],
     )
-    return Comparison(table, runs, mix, seed_list, reference, line)
+    runs["engine"] = runs["policy"].map(engines)
+    return Comparison(table, runs, mix, seed_list, reference, line, engines)
 
 
 def trained_policy(trained: str | Path) -> tuple[str, Callable[[], Policy]]:
@@ -186,8 +209,9 @@ def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) 
     """Write ``evaluation.csv`` and ``rules.csv`` of ``comparison`` into folder ``out``.
 
     ``evaluation.csv``: scenario, mode, termination, duration, policy, kind (hdqn, rule,
-    mix), seed, gripping_rate; one row per policy and seed. ``rules.csv``: robot (from 1),
-    rule, count of the HDQN on the first evaluation seed. Returns the paths written.
+    mix), seed, gripping_rate, engine (the one that ran it); one row per policy and seed.
+    ``rules.csv``: robot (from 1), rule, count of the HDQN on the first evaluation seed.
+    Returns the paths written.
     """
     from policies.hdqn.checkpoint import read_meta
 
@@ -208,6 +232,7 @@ def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) 
             "kind": [policy_kind(p, comparison.reference) for p in runs["policy"]],
             "seed": runs["seed"],
             "gripping_rate": runs["gripping_rate"],
+            "engine": runs["engine"] if "engine" in runs else "simpy",
         }
     )
     paths = [folder / "evaluation.csv", folder / "rules.csv"]

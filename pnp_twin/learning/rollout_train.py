@@ -84,6 +84,7 @@ class RolloutArgs:
     eval_duration: float = 300.0
     resume: bool = False
     overrides: dict[str, Any] = field(default_factory=dict)
+    engine: str = "auto"  # of the validation's rule baselines (same results on each)
 
 
 def _label(job: tuple[Scenario, int, LabelSettings]) -> Labels:
@@ -152,7 +153,8 @@ def train_rollout(
         log.info("resumed %s with %d labelled episodes", folder, done)
     validation = [VALIDATION_SEED_BASE + i for i in range(args.eval_seeds)]
     val_scenario = eval_scenario(base, "async", args.eval_duration)
-    baselines = rule_baselines(val_scenario, validation)
+    ran: set[str] = set()
+    baselines = rule_baselines(val_scenario, validation, args.engine, ran)
     # "step" counts labelled decisions (the transitions of this training), as in train's eval.csv
     columns = ["step", "episodes", "wall_time", *VALIDATION_COLUMNS]
     resuming = bool(parts)  # a resume with no labels yet starts the logs afresh
@@ -185,6 +187,7 @@ def train_rollout(
             "scenario": base.model_dump(mode="json"),
             "train_args": {**asdict(args), "view": "belt", "mode": "async"},
             "device": str(device),
+            "baseline_engine": ",".join(sorted(ran)),
             "counters": {
                 "step": len(labels),
                 "episodes": done,

@@ -221,7 +221,9 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
     )
     validation = validation_seeds(args.eval_seeds)
     val_scenario = eval_scenario(base, args.mode, args.eval_duration)
-    baselines = rule_baselines(val_scenario, validation)
+    ran: set[str] = set()
+    baselines = rule_baselines(val_scenario, validation, args.engine, ran)
+    meta["baseline_engine"] = ",".join(sorted(ran))  # which engine ran the rule baselines
 
     # -- the loop --------------------------------------------------------------------------------
     clock = _Clock(loop.step, loop.wall_time)

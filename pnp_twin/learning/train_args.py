@@ -96,6 +96,9 @@ class TrainArgs:
     """Continue the run from its last checkpoint."""
     threads: int = 1
     """torch CPU threads (the machine is shared)."""
+    engine: str = "auto"
+    """Engine of the validation's rule baselines: simpy, fast or auto (same results; the HDQN
+    itself runs on simpy)."""
     overrides: dict[str, Any] = field(default_factory=dict)
     """Dotted-path scenario overrides."""
 
@@ -136,6 +139,8 @@ def check_args(args: TrainArgs) -> tuple[str, ...]:
     if args.mode not in MODES:
         raise EnvError(f"mode: '{args.mode}' is not a mode; allowed {', '.join(MODES)}")
     rules = check_rules(args.rules)
+    if args.engine not in ("simpy", "fast", "auto"):
+        raise EnvError(f"engine: '{args.engine}' is not an engine; allowed simpy, fast, auto")
     if args.view not in VIEWS:
         raise EnvError(f"view: '{args.view}' is not a view; allowed {', '.join(VIEWS)}")
     if args.reward not in REWARDS:

@@ -45,14 +45,22 @@ def eval_scenario(scenario: Scenario, mode: str, duration: float) -> Scenario:
     )
 
 
-def rule_baselines(scenario: Scenario, seeds: list[int]) -> dict[str, list[float]]:
-    """Gripping rate per seed of every single rule (common random numbers)."""
+def rule_baselines(
+    scenario: Scenario, seeds: list[int], engine: str = "simpy", ran: set[str] | None = None
+) -> dict[str, list[float]]:
+    """Gripping rate per seed of every single rule (common random numbers).
+
+    ``engine``: :func:`twin.run.simulate`'s (same results on each); the engines that ran
+    are added to ``ran`` when given."""
     from policies.registry import make_policy
 
-    return {
-        r: [simulate(scenario, make_policy(r), seed=s).kpis["gripping_rate"] for s in seeds]
-        for r in RULES
-    }
+    out: dict[str, list[float]] = {}
+    for r in RULES:
+        results = [simulate(scenario, make_policy(r), seed=s, engine=engine) for s in seeds]
+        out[r] = [res.kpis["gripping_rate"] for res in results]
+        if ran is not None:
+            ran.update(str(res.meta.get("engine", "simpy")) for res in results)
+    return out
 
 
 def validate(

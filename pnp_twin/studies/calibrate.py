@@ -309,13 +309,25 @@ def curves(
 
 
 def calibrate(
-    problem: Problem, folder: Path, workers: int = 1, progress: Progress | None = None
+    problem: Problem,
+    folder: Path,
+    workers: int = 1,
+    progress: Progress | None = None,
+    engine: str = "auto",
 ) -> Calibration:
-    """Fit ``problem``, journalling every evaluation in ``folder``; see the module docstring."""
+    """Fit ``problem``, journalling every evaluation in ``folder``; see the module docstring.
+
+    ``engine``: the simulation engine of every run (simpy | fast | auto, same results);
+    ``extra["engine"]`` and ``extra["engines_ran"]`` record what was asked and what ran."""
     check_problem(problem)
     t0 = time.perf_counter()
     evaluator = Evaluator(
-        folder, problem.policies, problem.seeds, problem.targets.kpis, workers=workers
+        folder,
+        problem.policies,
+        problem.seeds,
+        problem.targets.kpis,
+        workers=workers,
+        engine=engine,
     )
     fit = Fit(problem, evaluator, progress)
     message = optimise(fit)
@@ -340,7 +352,11 @@ def calibrate(
         simulated=evaluator.simulated,
         replayed=evaluator.replayed,
         message=message,
-        extra={"lower": (fit.lower.x, fit.lower.objective)} if fit.lower is not None else {},
+        extra={
+            "engine": engine,
+            "engines_ran": sorted(evaluator.engines_ran),
+            **({"lower": (fit.lower.x, fit.lower.objective)} if fit.lower is not None else {}),
+        },
     )
 
 

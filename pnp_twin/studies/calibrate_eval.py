@@ -83,6 +83,7 @@ class Evaluator:
         seeds: Sequence[int],
         kpis: Sequence[str],
         workers: int = 1,
+        engine: str = "auto",
     ) -> None:
         self.folder = Path(folder) / EVALS
         self.folder.mkdir(parents=True, exist_ok=True)
@@ -92,6 +93,8 @@ class Evaluator:
         self.seeds = tuple(seeds)
         self.kpis = tuple(dict.fromkeys([BEST_BY, *kpis]))
         self.workers = workers
+        self.engine = engine  # twin.run.simulate's engine (same results either way)
+        self.engines_ran: set[str] = set()  # the engines that simulated this evaluator's runs
         self.simulated = 0  # points simulated by this evaluator (not replayed)
         self.replayed = 0
 
@@ -122,7 +125,7 @@ class Evaluator:
         self, scenarios: Sequence[Scenario], labels: Sequence[str]
     ) -> list[dict[str, list[dict[str, float]]]]:
         specs = [
-            RunSpec(f"{i}|{p}|{k}", i, {}, p, k, seed, sc)
+            RunSpec(f"{i}|{p}|{k}", i, {}, p, k, seed, sc, engine=self.engine)
             for i, sc in enumerate(scenarios)
             for p in self.policies
             for k, seed in enumerate(self.seeds)
@@ -140,6 +143,7 @@ class Evaluator:
                     f"r<i>_... need robot i on the line)"
                 )
             out[int(i)][p][int(k)] = {c: float(row[c]) for c in self.kpis}
+            self.engines_ran.add(str(row.get("engine", "simpy")))
 
         try:
             # a fresh pool costs a second or two to start: worth it only for a big batch

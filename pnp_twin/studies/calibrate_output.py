@@ -130,6 +130,8 @@ def summary(cal: Calibration, command: str, scenario_file: Path) -> dict[str, An
         "evaluations": len(cal.history),
         "simulated_points": cal.simulated,
         "replayed_points": cal.replayed,
+        "engine": cal.extra.get("engine", "auto"),
+        "engines_ran": list(cal.extra.get("engines_ran", [])),
         "optimiser": f"scipy.optimize.minimize(method='Nelder-Mead', bounds): {cal.message}",
         "history": [{"x": list(x), "objective": o} for x, o in cal.history],
         "profiles": profile_rows(cal),

@@ -254,6 +254,45 @@ def test_evaluate_command_prints_the_paired_table(trained):
         assert name in result.output
 
 
+def test_training_validates_the_same_on_every_engine_and_records_which_ran(tmp_path):
+    evals, metas = {}, {}
+    for engine in ("simpy", "fast"):
+        folder = train(_tiny_args(tmp_path / engine, 300, engine=engine))
+        with (folder / "eval.csv").open() as f:
+            rows = list(csv.DictReader(f))
+        evals[engine] = [{k: v for k, v in r.items() if k != "wall_time"} for r in rows]
+        metas[engine] = json.loads((folder / "meta.json").read_text())
+    assert evals["simpy"] == evals["fast"] and len(evals["simpy"]) == 1
+    for engine, meta in metas.items():
+        assert meta["baseline_engine"] == engine and meta["train_args"]["engine"] == engine
+
+
+def test_evaluate_gives_the_same_table_on_every_engine_and_records_which_ran(trained, tmp_path):
+    import pandas as pd
+    from typer.testing import CliRunner
+
+    from pnp_twin.cli import app
+
+    _, folder = trained
+    outputs, tables = {}, {}
+    for engine in ("simpy", "fast", "auto"):
+        args = ["evaluate", "paper_baseline", "--policy", f"hdqn:{folder}", "--seeds", "2"]
+        args += ["--duration", "15", "--mix", "SPT,FIFO", "--set", "robots.count=2"]
+        args += ["--engine", engine, "--out", str(tmp_path / engine)]
+        result = CliRunner().invoke(app, args)
+        assert result.exit_code == 0, result.output
+        outputs[engine] = result.stdout
+        tables[engine] = pd.read_csv(tmp_path / engine / "evaluation.csv")
+    assert outputs["simpy"] == outputs["fast"] == outputs["auto"]
+    for engine, table in tables.items():
+        ran = dict(zip(table["kind"], table["engine"], strict=True))
+        rules = "simpy" if engine == "simpy" else "fast"
+        assert ran == {"hdqn": "simpy", "rule": rules, "mix": rules}, engine
+    plain = [t.drop(columns="engine") for t in tables.values()]
+    pd.testing.assert_frame_equal(plain[0], plain[1])
+    pd.testing.assert_frame_equal(plain[0], plain[2])
+
+
 @pytest.mark.parametrize(
     ("mode", "channels", "view"),
     [("async", 2, "window"), ("single", 3, "window"), ("async", 2, "belt")],

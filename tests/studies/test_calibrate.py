@@ -123,6 +123,20 @@ def test_json_shape_outputs_and_resume_without_simulating(
     assert len(list((out / EVALS).glob("*.json"))) == simulated
 
 
+def test_engines_give_the_same_fit_and_say_which_ran(tmp_path: Path, small_targets: Path) -> None:
+    infos = {}
+    for engine in ("simpy", "fast"):
+        extra = ("--json", "--no-report", "--profile", "0", "--engine", engine)  # last wins
+        code, stdout, err = cli(*_cli_args(small_targets, tmp_path / engine, *extra))
+        assert code == 0, err
+        infos[engine] = json.loads(stdout)
+    for engine, info in infos.items():
+        assert info["engine"] == engine and info["engines_ran"] == [engine]
+    drop = ("engine", "engines_ran", "wall_time", "date", "command", "scenario_file")
+    same = [{k: v for k, v in i.items() if k not in drop} for i in infos.values()]
+    assert same[0] == same[1] and same[0]["simulated_points"] > 0
+
+
 @pytest.mark.parametrize(
     ("csv", "fit", "message"),
     [

@@ -9,9 +9,7 @@ SimPy engine's, value for value.
 from __future__ import annotations
 
 import time
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from twin.decision import Policy
 from twin.fast.engine import FastLine
@@ -19,6 +17,9 @@ from twin.kpis import compute_kpis
 from twin.records import Recorder
 from twin.run import RunResult
 from twin.scenario import Scenario
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 class FastRunResult(RunResult):
