@@ -111,7 +111,9 @@ class Gateway:
         if self.scheme == "t_all":
             self._maybe_all()
         elif self.scheme == "t_any" and self.expected and self.expected <= set(self.waiting):
-            self._open(sorted(self.expected))
+            robots = sorted(self.expected)
+            self.expected = set()  # the epoch opens; the next free robot starts a new one
+            self._open(robots)
 
     # -- epochs ------------------------------------------------------------------------------
     def _maybe_all(self) -> None:

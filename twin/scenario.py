@@ -381,6 +381,12 @@ class Scenario(Frozen):
             )
         if self.robots.mtbf > 0 and self.robots.mttr <= 0:
             raise ValueError("robots.mttr: must be > 0 when robots.mtbf > 0 (breakdowns on)")
+        for i in range(1, self.robots.count + 1):
+            if self.robot_param(i, "mtbf") > 0 and self.robot_param(i, "mttr") <= 0:
+                raise ValueError(
+                    f"robots.overrides: robot {i} breaks down (mtbf > 0) with no repair time; "
+                    "give it mttr > 0 (in its override or in robots.mttr)"
+                )
         return self
 
     def _check_layout(self) -> None:

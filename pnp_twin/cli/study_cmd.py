@@ -74,7 +74,13 @@ OutOpt = Annotated[
 ]
 WorkersOpt = Annotated[
     int | None,
-    typer.Option("--workers", "-w", help="Parallel runs (1 = in-process). Default: CPU count."),
+    typer.Option(
+        "--workers",
+        "-w",
+        min=1,
+        max=1024,
+        help="Parallel runs (1 = in-process). Default: CPU count.",
+    ),
 ]
 BackendOpt = Annotated[Backend, typer.Option("--backend", help="local process pool or ray.")]
 AddressOpt = Annotated[
@@ -272,6 +278,8 @@ def _precision_line(out: Path) -> str | None:
     if not p:
         return None
     state = "met at every point" if p["reached"] else f"not met at {p['points_short']} point(s)"
+    if p.get("points_undefined"):
+        state += f", undefined (no parts) at {p['points_undefined']}"
     return (
         f"replications: {p['replications']} (rounds {', '.join(map(str, p['rounds']))}); "
         f"target half-width {p['target_half_width']:g} points {state}; widest "

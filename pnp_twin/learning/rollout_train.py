@@ -185,9 +185,13 @@ def train_rollout(
             "rules": list(rules),
             "n_robots": n,
             "scenario": base.model_dump(mode="json"),
-            "train_args": {**asdict(args), "view": "belt", "mode": "async"},
+            "train_args": {
+                **asdict(args),
+                "view": "belt",
+                "mode": "async",
+                "baseline_engine": ",".join(sorted(ran)),  # the engine of the rule baselines
+            },
             "device": str(device),
-            "baseline_engine": ",".join(sorted(ran)),
             "counters": {
                 "step": len(labels),
                 "episodes": done,

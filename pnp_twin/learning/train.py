@@ -223,7 +223,8 @@ def train(args: TrainArgs, progress: Callable[[dict[str, Any]], None] | None = N
     val_scenario = eval_scenario(base, args.mode, args.eval_duration)
     ran: set[str] = set()
     baselines = rule_baselines(val_scenario, validation, args.engine, ran)
-    meta["baseline_engine"] = ",".join(sorted(ran))  # which engine ran the rule baselines
+    ran_text = ",".join(sorted(ran))  # the engine that ran the rule baselines, recorded
+    meta = {**meta, "train_args": {**meta["train_args"], "baseline_engine": ran_text}}
 
     # -- the loop --------------------------------------------------------------------------------
     clock = _Clock(loop.step, loop.wall_time)

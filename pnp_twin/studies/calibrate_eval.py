@@ -73,6 +73,22 @@ def _summarise(runs: dict[str, list[dict[str, float]]], kpis: Sequence[str]) -> 
     return PointPrediction(best, mean, low, high)
 
 
+
+def _read_journal(path: Path) -> dict[str, list[dict[str, float]]] | None:
+    """A journalled point's runs; None when absent. A damaged file (a kill mid-write on a
+    file system without atomic rename, an edit) is removed, so the point is simulated again."""
+    if not path.is_file():
+        return None
+    try:
+        runs = json.loads(path.read_text(encoding="utf-8"))["runs"]
+        if not isinstance(runs, dict):
+            raise TypeError("runs is not an object")
+        return runs
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError) as e:
+        log.warning("%s: damaged (%s); simulating the point again", path, e)
+        path.unlink(missing_ok=True)
+        return None
+
 class Evaluator:
     """Simulates points (policies x replications each), through the journal in ``folder``."""
 
@@ -106,9 +122,9 @@ class Evaluator:
         runs: dict[int, dict[str, list[dict[str, float]]]] = {}
         todo = []
         for i, key in enumerate(keys):
-            stored = self.folder / f"{key}.json"
-            if stored.is_file():
-                runs[i] = json.loads(stored.read_text(encoding="utf-8"))["runs"]
+            stored = _read_journal(self.folder / f"{key}.json")
+            if stored is not None:
+                runs[i] = stored
                 self.replayed += 1
             else:
                 todo.append(i)

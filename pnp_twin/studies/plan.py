@@ -204,6 +204,8 @@ def build_plan(
     for point in points:
         try:
             sc = with_overrides(resolved, point)
+            if point and sc.feeder.arrival == "trace":
+                check_replay(sc)  # each point's duration must stay inside the trace
         except ScenarioError as e:
             raise StudyError(_point_error(point, str(e))) from None
         for name in policies:

@@ -177,7 +177,9 @@ def run_plan(session: Session, plan: StudyPlan) -> tuple[StudyPlan, list[dict[st
     rounds = [plan.replications]
     while True:
         widths = half_widths(rows, p.kpi, session.options.confidence)
-        short = [h for h in widths.values() if not h <= p.half_width]
+        # a point whose KPI is undefined (no part presented) gains nothing from more runs
+        undefined = sum(1 for h in widths.values() if not math.isfinite(h))
+        short = [h for h in widths.values() if math.isfinite(h) and h > p.half_width]
         n = plan.replications
         if not short or n >= p.max_replications:
             break
@@ -195,8 +197,9 @@ def run_plan(session: Session, plan: StudyPlan) -> tuple[StudyPlan, list[dict[st
         "confidence": session.options.confidence,
         "replications": plan.replications,
         "rounds": rounds,
-        "reached": not short,
+        "reached": not short and not undefined,
         "points_short": len(short),
+        "points_undefined": undefined,
         "half_width_max": widths[worst],
         "worst": {"point": worst[0], "policy": worst[1]},
     }

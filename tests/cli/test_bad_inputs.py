@@ -157,6 +157,9 @@ CASES: dict[str, Case] = {
     ),
     "warm-up past the end": toml("duration = 50.0\nwarmup = 60.0\n", ["warmup", "duration"]),
     "breakdowns without repair": toml("[robots]\nmtbf = 100.0\n", ["robots.mttr"]),
+    "one robot breaks without repair": toml(
+        "[[robots.overrides]]\nrobot = 1\nmtbf = 5.0\n", ["robots.overrides", "robot 1", "mttr"]
+    ),
     "unknown policy in the file": toml('policy = "FASTEST"\n', ["policy", "FASTEST", "SPT"]),
     # --- --set -------------------------------------------------------------------------------
     "--set without =": sets("robots.count", ["--set", "robots.count", "path.to.field=value"]),

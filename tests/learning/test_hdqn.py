@@ -264,7 +264,7 @@ def test_training_validates_the_same_on_every_engine_and_records_which_ran(tmp_p
         metas[engine] = json.loads((folder / "meta.json").read_text())
     assert evals["simpy"] == evals["fast"] and len(evals["simpy"]) == 1
     for engine, meta in metas.items():
-        assert meta["baseline_engine"] == engine and meta["train_args"]["engine"] == engine
+        assert meta["train_args"]["baseline_engine"] == meta["train_args"]["engine"] == engine
 
 
 def test_evaluate_gives_the_same_table_on_every_engine_and_records_which_ran(trained, tmp_path):

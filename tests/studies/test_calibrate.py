@@ -122,6 +122,14 @@ def test_json_shape_outputs_and_resume_without_simulating(
     assert again["fitted"] == info["fitted"] and again["points"] == info["points"]
     assert len(list((out / EVALS).glob("*.json"))) == simulated
 
+    damaged = sorted((out / EVALS).glob("*.json"))[0]
+    damaged.write_text('{"runs": ')  # truncated: the point is simulated again, not a traceback
+    code, stdout, err = cli(*_cli_args(small_targets, out, "--json"))
+    assert code == 0 and "Traceback" not in err, err
+    third = json.loads(stdout)
+    assert third["simulated_points"] == 1 and third["fitted"] == info["fitted"]
+    assert json.loads(damaged.read_text())["runs"]
+
 
 def test_engines_give_the_same_fit_and_say_which_ran(tmp_path: Path, small_targets: Path) -> None:
     infos = {}

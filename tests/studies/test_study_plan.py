@@ -139,3 +139,10 @@ def test_auto_replications_start_small_and_define_the_study_as_auto(line):
     assert [s.seed for s in more.specs()][:3] == [s.seed for s in plan.specs()]
     capped = build_plan(with_overrides(sc, {"sweep.max_replications": 2}), grid={})
     assert capped.replications == 2  # the first round never passes the maximum
+
+
+def test_a_grid_point_running_past_its_trace_is_refused():
+    trace = load_scenario("trace_replay")
+    build_plan(trace, grid={"duration": [60.0, 100.0]}, replications=2)  # inside the trace
+    with pytest.raises(StudyError, match=r"sweep.grid.duration = 5000(.0)?: .*past the end of the"):
+        build_plan(trace, grid={"duration": [60.0, 5000.0]}, replications=2)

@@ -100,6 +100,19 @@ def test_t_any_interrupts_approaching_robots_and_waits_for_them():
     assert e2 is not None and e2.triggered and gw.epochs == 2
 
 
+def test_t_any_epoch_completed_by_a_breakdown_leaves_no_stale_epoch():
+    gw = gateway("t_any")
+    r0, r1, r2 = gw.robots
+    r1.approaching = True
+    e0 = gw.free(r0)  # opens an epoch waiting for r0 and the interrupted r1
+    assert e0 is not None and not e0.triggered and gw.expected == {0, 1}
+    r1.down = True
+    gw.down(r1)  # r1 breaks down instead of reporting: the epoch opens for r0 alone
+    assert e0.triggered and gw.expected == set() and gw.epochs == 1
+    e2 = gw.free(r2)  # later: r2 starts a new epoch of its own and decides at once
+    assert e2 is not None and e2.triggered and gw.epochs == 2
+
+
 def test_choose_returns_the_index_and_rule_and_counts_decisions():
     gw = gateway("t_continue", policy=Pick(1, "SPT"))
     d = Decision(SPEC, 0.0, (0.55, 0.2), [4, 7], [0.5, 0.4], [0.1, 0.3], [0.1, 0.2])

@@ -369,8 +369,11 @@ def _down(fs, ist, gi, gs, r, now):
         _maybe_all(fs, ist, gs, now)
     elif gi[SCHEME] == T_ANY:
         some, sub = _expected_waiting(ist)
-        if some and sub:  # the twin leaves `expected` set here; so does this
-            _open(fs, ist, gs, EXPECTED, now)
+        if some and sub:  # the epoch opens, and the next free robot starts a new one
+            for i in range(ist.shape[0]):
+                ist[i, MASK] = ist[i, EXPECTED]
+                ist[i, EXPECTED] = 0
+            _open(fs, ist, gs, MASK, now)
 
 
 @compiled()
