@@ -22,7 +22,7 @@ from typing import Any
 from twin.errors import UserError
 from twin.scenario import Scenario
 
-MAX_PARTS = 2_000_000  # parts in one run: about 1.4 GB and half a minute
+MAX_PARTS = 2_000_000  # parts in one run: about 1.6 GB and half a minute
 MAX_RUNS = 100_000  # runs in one study
 BYTES_PER_PART = 700.0
 BASE_BYTES = 180e6  # the interpreter, numpy, pandas, simpy

@@ -10,7 +10,7 @@ bounds its field states (in the JSON Schema as ``minimum``/``maximum`` with a ``
 settings that contradict each other are refused rather than ignored. A field left out takes
 the value of the shipped ``paper_baseline`` (a test keeps the two equal).
 
-Units are SI throughout (metres, seconds, m/s, parts/s); see ``shared/MODEL.md``.
+Units are SI throughout (metres, seconds, m/s, parts/s); see ``docs/model.md``.
 """
 
 from __future__ import annotations

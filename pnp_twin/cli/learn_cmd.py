@@ -24,6 +24,7 @@ from rich.table import Table
 
 from pnp_twin.cli.app import INTERRUPTED, ScenarioArg, SetOpt, app, fail
 from pnp_twin.cli.console import stdout_console
+from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.cli.train_progress import TrainProgress
 from pnp_twin.learning.train_args import TrainArgs, field_help
 from pnp_twin.parallel import BACKENDS, pool_map_ordered, ray_map
@@ -367,13 +368,13 @@ def evaluate_cmd(
     ] = None,
     sets: SetOpt = None,
     engine: Annotated[
-        str,
+        Engine,
         typer.Option(
             "--engine",
             help="Engine of the rule and mix runs: simpy, fast or auto (same results); the "
             "trained policy always runs on simpy.",
         ),
-    ] = "auto",
+    ] = Engine.auto,
 ) -> None:
     """Compare a trained policy with every rule and the best rule mix, paired by seed."""
     _need_torch()
@@ -390,8 +391,6 @@ def evaluate_cmd(
     if out is not None and out.exists() and not out.is_dir():
         fail(f"--out: '{out}' is a file; give a folder (e.g. the run folder)")
     make_policy(policy, line.robots.count)  # a broken model fails before any run
-    if engine not in ("simpy", "fast", "auto"):
-        fail(f"--engine: '{engine}' is not an engine; allowed simpy, fast, auto")
     result = compare(
         line,
         reference,
@@ -399,7 +398,7 @@ def evaluate_cmd(
         first_seed=first_seed,
         mix=mix,
         duration=duration,
-        engine=engine,
+        engine=engine.value,
     )
     stdout_console().print(_comparison_table(result, line.name))
     if out is not None:

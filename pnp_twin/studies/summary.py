@@ -15,6 +15,8 @@ import pandas as pd
 from twin.stats import t_interval
 
 KPIS = ("gripping_rate", "throughput", "efficiency", "utilisation")
+# G in %, efficiency and utilisation as fractions (the CSV convention, docs/study_format.md)
+BOUNDS = {"gripping_rate": (0.0, 100.0), "efficiency": (0.0, 1.0), "utilisation": (0.0, 1.0)}
 
 
 def summarise(results: pd.DataFrame, grid: Sequence[str], confidence: float = 0.95) -> pd.DataFrame:
@@ -24,8 +26,8 @@ def summarise(results: pd.DataFrame, grid: Sequence[str], confidence: float = 0.
         row = {"point": point, **{c: g[c].iloc[0] for c in grid}, "policy": policy, "n": len(g)}
         for kpi in KPIS:
             mean, low, high = t_interval(g[kpi].to_numpy(), confidence)
-            if kpi == "gripping_rate":  # a percentage: the interval cannot leave [0, 100]
-                low, high = max(low, 0.0), min(high, 100.0)
+            if kpi in BOUNDS:  # a bounded KPI: its interval cannot leave the bounds
+                low, high = max(low, BOUNDS[kpi][0]), min(high, BOUNDS[kpi][1])
             row.update({f"{kpi}_mean": mean, f"{kpi}_ci_low": low, f"{kpi}_ci_high": high})
         rows.append(row)
     return pd.DataFrame(rows)
