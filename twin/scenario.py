@@ -169,11 +169,11 @@ class RobotsConfig(Frozen):
         "are laid out from first_workspace_start, workspace_length and workspace_gap.",
     )
     first_workspace_start: Real = num(0.3, "m", "a_1 in m.", ge=0, le=1000)
-    workspace_length: Real = num(0.5, "m", "b_i - a_i in m.", gt=0, le=100)
+    workspace_length: Real = num(0.2192, "m", "b_i - a_i in m.", gt=0, le=100)
     workspace_gap: Real = num(0.0, "m", "Gap between workspaces in m.", ge=0, le=100)
     arm_speed: ArmSpeed = num(3.0, "m/s", "Tool speed v_r in m/s (straight moves).")
-    pick_time: PickTime = num(0.12, "s", "Grip time in s.")
-    place_time: PickTime = num(0.12, "s", "Release time in s.")
+    pick_time: PickTime = num(0.003694, "s", "Grip time in s.")
+    place_time: PickTime = num(0.003694, "s", "Release time in s.")
     acceleration: Acceleration = num(
         0.0,
         "m/s^2",
@@ -181,7 +181,7 @@ class RobotsConfig(Frozen):
         "arm must reach belt speed within its workspace: at least v_b^2 / (2 L_ws).",
     )
     bin_offset: BinOffset = num(
-        (0.0, 0.25),
+        (0.0, 0.5976),
         "m",
         "Bin position relative to (workspace centre x, upper belt edge W), in m; the bin "
         "sits on the upper side (second value >= 0).",

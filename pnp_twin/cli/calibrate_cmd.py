@@ -14,6 +14,8 @@ import os
 import shlex
 import shutil
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -30,18 +32,40 @@ from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.calibrate_fields import check_distinct, parse_fit
 from pnp_twin.studies.calibrate_output import write_outputs
 from pnp_twin.studies.calibrate_targets import read_targets
+from pnp_twin.studies.lock import StudyLock
 from pnp_twin.studies.plan import StudyError
 from policies import RULES
 from twin.loader import load_scenario, parse_sets
 from twin.output import dumps_json
 
 
-def _check_out(out: Path, fresh: bool) -> None:
+def _check_out(out: Path) -> StudyLock:
+    """The output folder, locked (a second calibration into it is refused at once)."""
     if out.exists() and not out.is_dir():
         raise StudyError(f"--out {out}: is a file; give a folder")
-    out.mkdir(parents=True, exist_ok=True)
-    if fresh and (out / EVALS).is_dir():
-        shutil.rmtree(out / EVALS)
+    lock = StudyLock(out)
+    lock.acquire(shlex.join(["pnp-twin", *sys.argv[1:]]))
+    return lock
+
+
+@contextmanager
+def _journal(out: Path, fresh: bool) -> Iterator[None]:
+    """With ``fresh``, the old journal is moved aside and deleted only once the new fit has
+    finished; a failed fit puts it back."""
+    old, aside = out / EVALS, out / f".{EVALS}.replaced"
+    moved = fresh and old.is_dir()
+    if moved:
+        shutil.rmtree(aside, ignore_errors=True)
+        old.rename(aside)
+    try:
+        yield
+    except BaseException:
+        if moved:
+            shutil.rmtree(old, ignore_errors=True)
+            aside.rename(old)
+        raise
+    if moved:
+        shutil.rmtree(aside, ignore_errors=True)
 
 
 def _problem(
@@ -187,7 +211,26 @@ def calibrate_cmd(
     problem, overrides = _problem(
         scenario, targets, fit or [], sets, policy, replications, max_evals, profile, pairs
     )
-    _check_out(out, fresh)
+    lock = _check_out(out)
+    try:
+        with _journal(out, fresh):
+            args = (scenario, overrides, no_report, json_out)
+            _calibrate(problem, out, workers, engine.value, *args)
+    finally:
+        lock.release()
+
+
+def _calibrate(
+    problem: Problem,
+    out: Path,
+    workers: int | None,
+    engine: str,
+    scenario: str,
+    overrides: dict[str, Any],
+    no_report: bool,
+    json_out: bool,
+) -> None:
+    """Fit, write the outputs and show the answer (the lock is held by the caller)."""
     w = workers if workers is not None else (os.cpu_count() or 1)
     err = Console(stderr=True, highlight=False)
     bar = Progress(
@@ -198,13 +241,13 @@ def calibrate_cmd(
         TimeElapsedColumn(),
         console=err,
     )
-    task = bar.add_task("calibrate", total=max_evals, best="-")
+    task = bar.add_task("calibrate", total=problem.max_evals, best="-")
 
     def update(done: int, best: float) -> None:
-        bar.update(task, completed=done, total=max(done, max_evals), best=f"{best:.4g}")
+        bar.update(task, completed=done, total=max(done, problem.max_evals), best=f"{best:.4g}")
 
     with bar:
-        cal = calibrate(problem, out, workers=w, progress=update, engine=engine.value)
+        cal = calibrate(problem, out, workers=w, progress=update, engine=engine)
     command = shlex.join(["pnp-twin", *sys.argv[1:]])
     info = write_outputs(cal, out, scenario, overrides, command)
     if not no_report:

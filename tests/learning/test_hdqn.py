@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -390,15 +391,21 @@ def test_belt_view_with_downstream_reward_trains_and_runs(tmp_path):
     assert a.kpis["parts_picked"] > 0 and _same_kpis(a.kpis, b.kpis)
 
 
-def test_checkpoints_without_the_view_option_still_see_windows():
+def test_checkpoints_without_the_view_option_still_see_windows(tmp_path):
     from policies.hdqn.policy import HDQNPolicy
 
-    folder = Path(__file__).resolve().parents[2] / "models" / "paper_baseline__async"
-    if not (folder / "meta.json").is_file():
+    shipped = Path(__file__).resolve().parents[2] / "models" / "paper_baseline__async"
+    if not (shipped / "meta.json").is_file():
         pytest.skip("no shipped checkpoint")
-    assert "view" not in json.loads((folder / "meta.json").read_text())
+    # the shipped model as written before the view option existed: no "view" key
+    folder = tmp_path / "before_view"
+    shutil.copytree(shipped, folder)
+    meta = json.loads((folder / "meta.json").read_text())
+    assert meta.pop("view") == "window"
+    (folder / "meta.json").write_text(json.dumps(meta))
     policy = HDQNPolicy.load(folder)
-    assert not policy.whole_belt and policy.agent.obs_shape == (1, 8, 14)
+    # the window of a 0.2192 m workspace: 7 of the belt image's 64 columns
+    assert not policy.whole_belt and policy.agent.obs_shape == (1, 8, 7)
     scenario = with_overrides(load_scenario("paper_baseline"), {"duration": 5.0, "warmup": 1.0})
     assert simulate(scenario, policy, seed=1).kpis["parts_picked"] > 0
 

@@ -222,3 +222,40 @@ def test_near_optimal_span_is_interpolated_around_the_minimum() -> None:
     assert lo == pytest.approx(1.0 - 1.0 / 8.0)  # 1 -> 9 crosses 2 an eighth of the way
     assert hi == pytest.approx(2.5)
     assert near_optimal([(0.0, 0.0), (1.0, 0.5)], best=0.0) == (0.0, 1.0)  # flat: whole span
+
+
+def test_a_held_folder_is_refused_and_a_failed_fresh_keeps_the_journal(
+    tmp_path: Path, small_targets: Path
+) -> None:
+    from pnp_twin.studies.lock import StudyLock
+
+    out = tmp_path / "cal"
+    code, _, err = cli(*_cli_args(small_targets, out, "--json"))
+    assert code == 0, err
+    journal = sorted(p.name for p in (out / EVALS).glob("*.json"))
+    lock = StudyLock(out)
+    lock.acquire("another calibration")
+    try:  # a second calibration into the held folder: one line, nothing touched
+        code, _, err = cli(*_cli_args(small_targets, out, "--json", "--fresh"))
+    finally:
+        lock.release()
+    assert code == 2 and "in use by" in err and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in (out / EVALS).glob("*.json")) == journal
+
+
+def test_a_fresh_fit_that_fails_puts_the_old_journal_back(
+    tmp_path: Path, small_targets: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "cal"
+    code, _, err = cli(*_cli_args(small_targets, out, "--json"))
+    assert code == 0, err
+    journal = {p.name: p.read_bytes() for p in (out / EVALS).glob("*.json")}
+
+    def failing(*args: object, **kwargs: object) -> None:
+        assert not (out / EVALS).exists()  # --fresh: the old journal is out of the way
+        raise StudyError("calibrate: the fit failed")
+
+    monkeypatch.setattr("pnp_twin.cli.calibrate_cmd.calibrate", failing)
+    code, _, err = cli(*_cli_args(small_targets, out, "--json", "--fresh"))
+    assert code == 2 and "the fit failed" in err
+    assert {p.name: p.read_bytes() for p in (out / EVALS).glob("*.json")} == journal

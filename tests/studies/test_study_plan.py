@@ -86,9 +86,9 @@ def test_bad_values_name_path_and_value_before_any_run(line, grid, needle):
 
 
 def test_combination_error_names_the_point(line):
-    # 8 robots of 0.5 m do not fit a 2.4 m belt: neither value is wrong on its own
-    with pytest.raises(StudyError, match=r"sweep point \(robots.count=8\): .*belt.length"):
-        build_plan(line, grid={"robots.count": [2, 8]})
+    # 10 robots of 0.2192 m do not fit a 2.4 m belt: neither value is wrong on its own
+    with pytest.raises(StudyError, match=r"sweep point \(robots.count=10\): .*belt.length"):
+        build_plan(line, grid={"robots.count": [2, 10]})
 
 
 def test_unknown_policy_is_an_error(line):

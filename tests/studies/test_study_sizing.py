@@ -123,9 +123,10 @@ def test_sizing_answer_is_the_smallest_count_with_lower_bound_over_target():
 
 def test_sizing_setup_adds_counts_failures_and_belt():
     line = load_scenario("paper_baseline")
-    sc, grid = sizing_setup(line, {COUNT: [2, 6]})
-    assert grid == {COUNT: [2, 6], MTBF: [0.0, 600.0]}
-    assert sc.robots.mttr == 30.0 and sc.belt.length >= 0.3 + 6 * 0.5
+    sc, grid = sizing_setup(line, {COUNT: [2, 12]})  # 12 workspaces need more belt
+    assert grid == {COUNT: [2, 12], MTBF: [0.0, 600.0]}
+    need = 0.3 + 12 * line.robots.workspace_length
+    assert sc.robots.mttr == 30.0 and sc.belt.length >= need > line.belt.length
 
 
 def test_tiny_sizing_study(tmp_path):
@@ -139,11 +140,11 @@ def test_tiny_sizing_study(tmp_path):
             "sweep": {"grid": {COUNT: [1, 2, 3, 4]}, "policies": ["SPT"], "replications": 2},
         },
     )
-    _, s = run_size(line, tmp_path, 90.0, Options(workers=1))
+    _, s = run_size(line, tmp_path, 80.0, Options(workers=1))
     plain = [r for r in s["rows"] if r[MTBF] == 0]
     means = [r["gripping_rate_mean"] for r in sorted(plain, key=lambda r: r[COUNT])]
     assert all(b >= a - 1.0 for a, b in zip(means, means[1:], strict=False))  # ~monotone
-    reached = [r[COUNT] for r in plain if r["ci_low"] >= 90.0]
+    reached = [r[COUNT] for r in plain if r["ci_low"] >= 80.0]
     assert s["answer"] == (min(reached) if reached else None)
     assert s["answer"] is not None and s["answer"] > 1
     saved = json.loads((tmp_path / "sizing.json").read_text())
@@ -166,6 +167,7 @@ def test_sizing_layout_is_a_stated_choice(tmp_path):
         load_scenario("paper_baseline"),
         {
             "robots.count": 3,
+            "robots.workspace_length": 0.5,  # the layout arithmetic below
             "belt.length": 2.0,
             "feeder.rate": 3.0,
             "duration": 30,
