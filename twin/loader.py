@@ -173,8 +173,14 @@ def parse_sets(items: Iterable[str]) -> dict[str, Any]:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise ScenarioError(f"--set: {excerpt(item)} is not of the form path.to.field=value")
-        out[key.strip()] = parse_value(value.strip())
+        key = key.strip()
+        out[key] = value.strip() if key in TEXT_FIELDS else parse_value(value.strip())
     return out
+
+
+# Fields that hold free text: their --set value is taken as written (``name=on`` is the text
+# "on", ``description=Line 3: week 12`` is not a mapping, ``007`` keeps its zeros).
+TEXT_FIELDS = frozenset({"name", "description", "policy", "feeder.trace"})
 
 
 def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:

@@ -279,3 +279,12 @@ def test_source_dir_is_set_by_the_loader_only() -> None:
     assert with_overrides(scenario, {"warmup": 5.0}).source_dir == scenario.source_dir
     with pytest.raises(ScenarioError, match="source_dir: not a scenario field"):
         load_scenario("paper_baseline", {"source_dir": "/etc"})
+
+
+def test_set_takes_text_fields_as_written() -> None:
+    from twin.loader import parse_sets
+
+    sets = parse_sets(["name=on", "description=Line 3: week 12", "policy=SPT", "seed=007"])
+    assert sets == {"name": "on", "description": "Line 3: week 12", "policy": "SPT", "seed": 7}
+    scenario = load_scenario("two_robot", sets)
+    assert scenario.name == "on" and scenario.description == "Line 3: week 12"
