@@ -55,8 +55,8 @@ def test_training_moves_every_weight(run):
     random.seed(1)
     torch.manual_seed(1)  # as train() seeds before building the agent
     initial = DQNAgent(
-        AgentConfig("compact", 2.5e-4, 0.9, True, target_every=100), (1, 8, 14), 6, 2
-    )
+        AgentConfig("compact", 2.5e-4, 0.9, True, target_every=100), (1, 8, 7), 6, 2
+    )  # the window of a 0.2192 m workspace: 7 of the belt image's 64 columns
     trained, _meta = load_agent(run)
     before, after = initial.q.state_dict(), trained.q.state_dict()
     assert before.keys() == after.keys()
@@ -76,7 +76,7 @@ def test_the_td_loss_falls_on_the_runs_own_experience(run):
     assert len(logged) >= 20 and np.isfinite(logged).all()
     agent, _meta = load_agent(run / "resume", train_state=True)
     agent.config = replace(agent.config, target_every=10**9)
-    replay = ReplayBuffer(3000, (1, 8, 14), 2)
+    replay = ReplayBuffer(3000, (1, 8, 7), 2)
     replay.load(run / "resume" / "replay.npz")
     batch = replay.sample(256, np.random.default_rng(0))
     agent.q.train()

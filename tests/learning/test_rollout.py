@@ -100,11 +100,12 @@ def test_rollout_training_writes_a_policy_identical_for_any_worker_count(tmp_pat
 
 
 def test_rollout_training_resumes_from_its_labels(tmp_path):
+    # a window of 2 s: on paper_baseline the second episode has no labelled decision in SMALL's
     args = RolloutArgs(
         out=str(tmp_path),
         episodes=1,
         round_episodes=1,
-        settings=SMALL,
+        settings=LabelSettings(futures=2, episode_time=6.0, window=(2.0, 4.0)),
         epochs=1,
         eval_seeds=2,
         eval_duration=20.0,

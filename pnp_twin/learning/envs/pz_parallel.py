@@ -113,7 +113,7 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
         camera = self.driver.camera
         self.view = ObservationView(observation, camera.window_shape)
         self._observation_space = self.view.space
-        self._action_space = spaces.Discrete(len(self.rules))
+        self._action_space: spaces.Discrete = spaces.Discrete(len(self.rules))
         self.state_space = spaces.Box(0, 1, camera.shape, dtype=np.uint8)
         self.agents: list[str] = []
         self._seed_rng = np.random.default_rng()
