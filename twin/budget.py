@@ -69,7 +69,12 @@ def _time(s: float) -> str:
 def expected_parts(scenario: Scenario, trace_rows: int | None = None) -> float:
     """Parts a run of ``scenario`` feeds: rate x duration, or the trace's rows."""
     if scenario.feeder.arrival == "trace":
-        return float(trace_rows or 0)
+        if trace_rows is None:
+            from twin.trace import check_replay  # the trace's rows (read once more)
+
+            trace = check_replay(scenario)
+            trace_rows = 0 if trace is None else len(trace.times)
+        return float(trace_rows)
     return scenario.feeder.rate * scenario.duration
 
 

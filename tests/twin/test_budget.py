@@ -61,3 +61,9 @@ def test_a_trace_run_counts_its_rows() -> None:
     scenario = load_scenario("trace_replay")
     assert expected_parts(scenario, trace_rows=730) == 730
     check_run(scenario)
+
+
+def test_a_trace_run_is_estimated_from_its_rows() -> None:
+    from twin.budget import expected_parts
+
+    assert expected_parts(load_scenario("trace_replay")) == 730  # the shipped trace's rows
