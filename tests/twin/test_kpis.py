@@ -152,15 +152,18 @@ def test_a_run_and_its_tables_give_the_same_kpis(make_scenario) -> None:
     # the SimPy run computes its KPIs from the Recorder's arrays, not from its tables: the
     # tables read back must give the same figures (bit for bit); breakdowns, box changes
     # and t_any included so spans of every state occur
-    changes = {"robots.mtbf": 20.0, "robots.mttr": 2.0, "termination": "t_any"}
-    sc = make_scenario({**changes, "bins.capacity": 5, "bins.change_time": 1.0})
-    r = simulate(sc, make_policy("SIRO"))
-    assert set(r.spans["state"]) == {"wait", "interrupted", "noop", "blocked", "down"}
-    w0, w1 = r.kpis["window"]
-    ref = table_kpis(r.parts, r.spans, robot_specs(sc), w0, w1)
-    got = {k: v for k, v in r.kpis.items() if k in ref}
-    assert list(got) == list(ref)
-    assert json.dumps(got) == json.dumps(ref)
+    changes = {"robots.mtbf": 20.0, "robots.mttr": 2.0, "bins.capacity": 5}
+    states: set[str] = set()
+    for scheme in ("t_any", "t_all"):  # t_any interrupts approaches, t_all makes robots wait
+        sc = make_scenario({**changes, "termination": scheme, "bins.change_time": 1.0})
+        r = simulate(sc, make_policy("SIRO"))
+        states |= set(r.spans["state"])
+        w0, w1 = r.kpis["window"]
+        ref = table_kpis(r.parts, r.spans, robot_specs(sc), w0, w1)
+        got = {k: v for k, v in r.kpis.items() if k in ref}
+        assert list(got) == list(ref)
+        assert json.dumps(got) == json.dumps(ref)
+    assert states == {"wait", "interrupted", "noop", "blocked", "down"}
 
 
 def test_kpis_of_a_real_run_are_consistent(make_scenario) -> None:
