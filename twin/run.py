@@ -108,26 +108,37 @@ def simulate(
     belt, last_end = line.belt, line.last_end
     records = recorder_records(rec, line.belt.fed)
     kpis = compute_kpis(*records, line.specs, scenario.warmup, line.duration)
-    name = str(policy_name or getattr(policy, "name", type(policy).__name__))
-    kpis = {
-        "scenario": scenario.name,
-        "policy": name,
-        "seed": line.seed,
-        "termination": scenario.termination,
-        **kpis,
-    }
-    base = {
-        "scenario": scenario,
-        "policy": name,
-        "seed": line.seed,
-        "kpis": kpis,
-        "wall_time": wall,
-        "sim_time": line.now,
-        "meta": {"engine": "simpy"},
-    }
     builders = {
         "parts": lambda: rec.parts_frame(belt, last_end),
         "spans": rec.spans_frame,
         "decisions": rec.decisions_frame,
+    }
+    meta = {"engine": "simpy", "wall_time": wall, "sim_time": line.now, "seed": line.seed}
+    return run_result(scenario, policy_label(policy, policy_name), kpis, meta, builders)
+
+
+def policy_label(policy: Policy, policy_name: str | None = None) -> str:
+    """The name a run's results give its policy."""
+    return str(policy_name or getattr(policy, "name", type(policy).__name__))
+
+
+def run_result(
+    scenario: Scenario,
+    name: str,
+    kpis: dict[str, Any],
+    run: dict[str, Any],
+    builders: dict[str, Callable[[], pd.DataFrame]],
+) -> RunResult:
+    """One engine's run as a RunResult: the KPIs headed by what ran, the tables built on
+    first read from ``builders``; ``run`` holds the engine, seed, wall and simulated time."""
+    head = {"scenario": scenario.name, "policy": name, "seed": run["seed"]}
+    base = {
+        "scenario": scenario,
+        "policy": name,
+        "seed": run["seed"],
+        "kpis": {**head, "termination": scenario.termination, **kpis},
+        "wall_time": run["wall_time"],
+        "sim_time": run["sim_time"],
+        "meta": {"engine": run["engine"]},
     }
     return LazyRunResult(base, builders)

@@ -8,74 +8,14 @@ SimPy engine's, value for value.
 
 from __future__ import annotations
 
+import functools
 import time
-from typing import TYPE_CHECKING, Any
 
 from twin.decision import Policy
 from twin.fast.engine import FastLine
 from twin.kpis import compute_kpis
-from twin.records import Recorder
-from twin.run import RunResult
+from twin.run import RunResult, policy_label, run_result
 from twin.scenario import Scenario
-
-if TYPE_CHECKING:
-    import pandas as pd
-
-
-class FastRunResult(RunResult):
-    """A RunResult whose ``parts``, ``spans`` and ``decisions`` tables are built on first use."""
-
-    def __init__(self, line: FastLine, policy: str, kpis: dict[str, Any], wall: float) -> None:
-        self._line = line
-        self._tables: dict[str, pd.DataFrame] = {}
-        self._rec: Recorder | None = None
-        self.scenario = line.scenario
-        self.policy = policy
-        self.seed = line.seed
-        self.kpis = kpis
-        self.wall_time = wall
-        self.sim_time = line.now
-        self.meta = {"engine": "fast"}
-
-    def _recorder(self) -> Recorder:
-        if self._rec is None:
-            self._rec = self._line.recorder()
-        return self._rec
-
-    def _table(self, name: str) -> pd.DataFrame:
-        if name not in self._tables:
-            rec = self._recorder()
-            if name == "parts":
-                self._tables[name] = rec.parts_frame(self._line.belt, self._line.last_end)
-            elif name == "spans":
-                self._tables[name] = rec.spans_frame()
-            else:
-                self._tables[name] = rec.decisions_frame()
-        return self._tables[name]
-
-    @property  # type: ignore[override]
-    def parts(self) -> pd.DataFrame:
-        return self._table("parts")
-
-    @parts.setter
-    def parts(self, value: pd.DataFrame) -> None:
-        self._tables["parts"] = value
-
-    @property  # type: ignore[override]
-    def spans(self) -> pd.DataFrame:
-        return self._table("spans")
-
-    @spans.setter
-    def spans(self, value: pd.DataFrame) -> None:
-        self._tables["spans"] = value
-
-    @property  # type: ignore[override]
-    def decisions(self) -> pd.DataFrame:
-        return self._table("decisions")
-
-    @decisions.setter
-    def decisions(self, value: pd.DataFrame) -> None:
-        self._tables["decisions"] = value
 
 
 def simulate_fast(
@@ -89,14 +29,12 @@ def simulate_fast(
     line = FastLine(scenario, policy, seed=seed)
     line.run()
     wall = time.perf_counter() - t0
-    name = str(policy_name or getattr(policy, "name", type(policy).__name__))
-    result = FastRunResult(line, name, {}, wall)
-    kpis = compute_kpis(*line.kpi_records(), line.specs, scenario.warmup, line.duration)
-    result.kpis = {
-        "scenario": scenario.name,
-        "policy": name,
-        "seed": line.seed,
-        "termination": scenario.termination,
-        **kpis,
+    recorder = functools.cache(line.recorder)  # the tables' source, built on first read
+    builders = {
+        "parts": lambda: recorder().parts_frame(line.belt, line.last_end),
+        "spans": lambda: recorder().spans_frame(),
+        "decisions": lambda: recorder().decisions_frame(),
     }
-    return result
+    kpis = compute_kpis(*line.kpi_records(), line.specs, scenario.warmup, line.duration)
+    meta = {"engine": "fast", "wall_time": wall, "sim_time": line.now, "seed": line.seed}
+    return run_result(scenario, policy_label(policy, policy_name), kpis, meta, builders)
