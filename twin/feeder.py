@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 from collections.abc import Generator
 from heapq import heappush
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -19,7 +18,7 @@ import simpy
 from simpy.events import URGENT
 
 from twin.scenario import FeederConfig, Scenario
-from twin.trace import TraceError, read_trace  # noqa: F401  (read here, kept importable)
+from twin.trace import TraceError, read_trace, resolve  # noqa: F401  (TraceError kept importable)
 
 if TYPE_CHECKING:
     from twin.belt import Belt
@@ -115,9 +114,7 @@ class Feeder:
         return out
 
     def _replay(self, duration: float) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
-        path = Path(self.config.trace or "")
-        if not path.is_absolute() and self.source_dir:
-            path = Path(self.source_dir) / path
+        path = resolve(self.config.trace or "", self.source_dir)
         times, ys, kinds = read_trace(path, self.width)
         keep = times < duration
         log.info("replaying %d of %d parts from %s", int(keep.sum()), len(times), path)

@@ -65,9 +65,14 @@ def trace_file(scenario: Scenario) -> Path | None:
     """The trace a scenario replays, resolved against its file's folder; None if none."""
     if scenario.feeder.arrival != "trace" or not scenario.feeder.trace:
         return None
-    path = Path(scenario.feeder.trace)
-    if not path.is_absolute() and scenario.source_dir:
-        path = Path(scenario.source_dir) / path
+    return resolve(scenario.feeder.trace, scenario.source_dir)
+
+
+def resolve(trace: str, source_dir: str | Path | None) -> Path:
+    """A trace path as a scenario file names it: relative ones from the file's folder."""
+    path = Path(trace)
+    if not path.is_absolute() and source_dir:
+        path = Path(source_dir) / path
     return path
 
 

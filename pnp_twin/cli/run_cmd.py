@@ -36,7 +36,7 @@ from twin.output import (
 )
 from twin.run import RunResult, simulate
 from twin.scenario import Scenario
-from twin.trace import read_trace
+from twin.trace import read_trace, trace_file
 
 
 class Engine(StrEnum):
@@ -264,16 +264,6 @@ def _drop_none(obj: Any) -> Any:
     return obj
 
 
-def trace_path(scenario: Scenario) -> Path | None:
-    """The trace file a scenario replays, resolved against its folder; None if no trace."""
-    if scenario.feeder.arrival != "trace" or not scenario.feeder.trace:
-        return None
-    path = Path(scenario.feeder.trace)
-    if not path.is_absolute() and scenario.source_dir:
-        path = Path(scenario.source_dir) / path
-    return path
-
-
 @app.command("validate")
 def validate(
     scenario: ScenarioArg,
@@ -286,7 +276,7 @@ def validate(
     scn = _load(scenario, sets)
     make_policy(scn.policy, scn.robots.count)
     notes = [f"{scn.robots.count} robots", f"policy {scn.policy}"]
-    trace = trace_path(scn)
+    trace = trace_file(scn)
     if trace is not None:
         times, _, _ = read_trace(trace, scn.belt.width)
         span = float(times[-1]) if len(times) else 0.0
