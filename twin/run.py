@@ -91,8 +91,7 @@ def simulate(
     """Run ``scenario`` with ``policy`` (seed defaults to the scenario's) and measure it.
 
     ``engine``: "simpy" (this module), "fast" (the compiled :mod:`twin.fast`, same events,
-    rule policies only) or "auto" (fast where it can, else simpy); ``meta["engine"]`` says
-    which ran.
+    any policy) or "auto" (fast); ``meta["engine"]`` says which ran.
     """
     if engine != "simpy":
         from twin.fast import pick_engine, simulate_fast

@@ -19,9 +19,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from policies import RuleChoosingPolicy, make_policy
+from policies import make_policy
 from twin import simulate
-from twin.decision import Decision
 from twin.fast import EngineError
 from twin.loader import load_scenario, with_overrides
 from twin.run import RunResult
@@ -118,28 +117,9 @@ def test_a_full_baseline_hour_of_feeding() -> None:
     assert_same(load_scenario("paper_baseline", {"duration": 900.0}), "SPT", seed=3)
 
 
-class _Chooser(RuleChoosingPolicy):
-    name = "py-chooser"
-
-    def select_rule(self, decision: Decision) -> str:
-        return "SD" if decision.time % 2.0 < 1.0 else "FIFO"
-
-
-def test_auto_falls_back_to_simpy_for_python_policies() -> None:
-    sc = scenario("two_robot")
-    auto = simulate(sc, _Chooser(), engine="auto")
-    ref = simulate(sc, _Chooser(), engine="simpy")
-    assert auto.meta["engine"] == "simpy"
-    pd.testing.assert_frame_equal(auto.parts, ref.parts)
-    assert simulate(sc, make_policy("SD", 2), engine="auto").meta["engine"] == "fast"
-
-
-def test_fast_refuses_python_policies_and_unknown_engines() -> None:
-    sc = scenario("two_robot")
-    with pytest.raises(EngineError, match="engine fast: policy 'py-chooser'"):
-        simulate(sc, _Chooser(), engine="fast")
+def test_unknown_engines_are_refused() -> None:
     with pytest.raises(EngineError, match="'turbo' is not an engine; allowed simpy, fast, auto"):
-        simulate(sc, make_policy("SD", 2), engine="turbo")
+        simulate(scenario("two_robot"), make_policy("SD", 2), engine="turbo")
 
 
 def test_cli_engine_option_records_the_engine() -> None:

@@ -6,8 +6,9 @@ use, about 15 s of CPU) only when a fast run starts. It runs rule policies and p
 mixes (every rule, SIRO included: numpy's ``Generator.integers`` is replayed on the policy
 stream's pre-drawn raw outputs) under every termination scheme, with bins and box changes,
 breakdowns, acceleration limits and trace replay. Policies that are Python objects (the
-learned HDQN, any other ``choose``) are not compiled: ``auto`` runs them on SimPy and
-``fast`` refuses them with one line.
+learned HDQN, any other ``choose``) are called back at their decisions: the kernel stops,
+the policy gets the SimPy gateway's own :class:`~twin.decision.Decision` (and, through
+``attach``, a :class:`~twin.fast.belt_view.BeltView` of the belt), and the run resumes.
 
 Modules: :mod:`~twin.fast.mathlib` (CPython's float operations, bit for bit),
 :mod:`~twin.fast.layout` (state array columns), :mod:`~twin.fast.kernel` (the event loop),
@@ -35,34 +36,17 @@ class EngineError(UserError):
 
 
 def pick_engine(engine: str, policy: Policy) -> str:
-    """The engine that runs ``policy``: "fast" or "simpy" (``auto`` falls back to SimPy)."""
+    """The engine that runs ``policy``: "fast" or "simpy". The fast engine runs every
+    policy (Python objects through a callback at their decisions), so ``auto`` is "fast"."""
     if engine not in ENGINES:
         raise EngineError(f"engine: {engine!r} is not an engine; allowed {', '.join(ENGINES)}")
-    if engine == "simpy":
-        return "simpy"
-    reason = unsupported_reason(policy)
-    if reason is None:
-        return "fast"
-    if engine == "fast":
-        raise EngineError(reason)
-    return "simpy"
-
-
-def unsupported_reason(policy: Policy) -> str | None:
-    """None if the fast engine can run ``policy``, else one line saying why not."""
-    cls = type(policy)
-    if cls.__name__ == "RuleMix" and cls.__module__ == "policies.base":
-        return None
-    return (
-        f"engine fast: policy {getattr(policy, 'name', cls.__name__)!r} is a Python object, "
-        "not a rule or rule mix; use engine simpy (or auto, which falls back to it)"
-    )
+    return "simpy" if engine == "simpy" else "fast"
 
 
 def simulate_fast(
     scenario: Scenario, policy: Policy, seed: int | None = None, policy_name: str | None = None
 ) -> RunResult:
-    """:func:`twin.run.simulate` on the compiled engine (rule mixes only)."""
+    """:func:`twin.run.simulate` on the compiled engine."""
     from twin.fast.run import simulate_fast as run
 
     return run(scenario, policy, seed=seed, policy_name=policy_name)

@@ -8,6 +8,12 @@ doubles). Random draws the SimPy run makes during the run are pre-drawn: SIRO's
 replays numpy's Lemire rejection), breakdowns as standard exponentials (``exponential(m)``
 is ``m * standard_exponential()``). If a stream or the span buffer runs out, the run starts
 again with twice the room, so the result never depends on the first guess.
+
+A policy that is a Python object (the learned HDQN, any ``choose``) runs through a callback:
+its robots carry the rule code EXTERNAL, the kernel stops at each of their decisions
+(ST_CHOOSE) and :meth:`FastLine.run` hands the policy the same :class:`~twin.decision.Decision`
+the SimPy gateway builds, then resumes with its answer. ``hold=True`` pauses at every
+decision epoch instead (ST_EPOCH), as the SimPy gateway's hold mode does for environments.
 """
 
 from __future__ import annotations
@@ -16,14 +22,19 @@ import copy
 import math
 from collections import Counter
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
-from twin.decision import Policy, RobotSpec
+from twin.decision import Decision, Policy, RobotSpec
 from twin.fast import layout as L
-from twin.fast import unsupported_reason
-from twin.fast.kernel import close_open_spans, run_events, start_robots
+from twin.fast.belt_view import BeltView
+from twin.fast.kernel import (
+    choose_external,
+    close_open_spans,
+    release,
+    run_events,
+    start_robots,
+)
 from twin.feeder import Feeder
 from twin.kpis import SPAN_STATES, PartRecords, SpanRecords
 from twin.line import DRAIN_SLACK, robot_specs
@@ -32,7 +43,7 @@ from twin.scenario import Scenario
 
 
 class Unsupported(ValueError):
-    """The fast engine cannot run this policy; the message says why (auto uses SimPy)."""
+    """The fast engine cannot run this line as asked; the message says why."""
 
 
 def rule_codes(policy: Policy, n_robots: int) -> list[int] | None:
@@ -90,25 +101,37 @@ class FastLine:
         seed: int | None = None,
         duration: float | None = None,
         rules: Sequence[str] | None = None,
+        hold: bool = False,
+        parts: tuple[np.ndarray, np.ndarray, list[str] | None] | None = None,
     ) -> None:
-        """``policy`` is a rule mix (policies.base.RuleMix), reset here as Line resets it;
-        or give ``rules`` (one name, or one per robot) and no policy."""
+        """``policy`` is any policy: a rule mix (policies.base.RuleMix) is compiled, reset
+        here as Line resets it; any other is called back at its decisions (reset and attached
+        at each :meth:`start`). Or give ``rules`` (one name, or one per robot) and no policy.
+        ``hold`` pauses at every decision epoch (see :meth:`release`); ``parts`` replaces
+        the feeder's stream, as ``Line(parts=)``."""
         self.scenario = scenario
         self.seed = scenario.seed if seed is None else seed
         self.duration = scenario.duration if duration is None else duration
         n = scenario.robots.count
-        streams = [np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(3 + n)]
+        children = np.random.SeedSequence(self.seed).spawn(3 + n)
+        streams = [np.random.default_rng(s) for s in children]
         b = scenario.belt
         feeder = Feeder(scenario.feeder, b.width, streams[0], streams[1], scenario.source_dir)
-        self.fed, self.y, self.kind = feeder.stream(self.duration)
+        self.fed, self.y, self.kind = feeder.stream(self.duration) if parts is None else parts
         self.fed = np.ascontiguousarray(self.fed, dtype=np.float64)
         self.y = np.ascontiguousarray(self.y, dtype=np.float64)
         self.specs = robot_specs(scenario)
+        self.external: Policy | None = None
+        self._policy_seed = children[2]
+        self.extra_rules: list[str] = []  # rule names of external choices beyond RULE_NAMES
+        self.extra_counts: Counter[tuple[int, str]] = Counter()
         if policy is not None:
-            policy.reset(self.specs, streams[2])
             codes = rule_codes(policy, n)
             if codes is None:
-                raise Unsupported(unsupported_reason(policy) or "engine fast: unsupported policy")
+                self.external = policy
+                codes = [L.EXTERNAL] * n
+            else:
+                policy.reset(self.specs, streams[2])
         else:
             names = list(rules or ["FIFO"])
             codes = [
@@ -133,6 +156,7 @@ class FastLine:
         self.gi = np.zeros(L.N_GI, dtype=np.int64)
         self.gi[L.SCHEME] = L.SCHEME_CODES[scenario.termination]
         self.gi[L.CAPACITY] = scenario.bins.capacity
+        self.gi[L.HOLD] = int(hold)
         self.uses_siro = L.SIRO in codes
         self.breaks = bool(self.ip[:, L.FAILMODE].any())
 
@@ -158,6 +182,9 @@ class FastLine:
         while True:
             self.start(*rooms)
             status = self.advance(self.end_at)
+            while status == L.ST_CHOOSE:
+                self._answer()
+                status = self.advance(self.end_at)
             if status == L.ST_OK:
                 status = self.finish()
             if status == L.ST_OK:
@@ -194,6 +221,12 @@ class FastLine:
         self._c_i = np.zeros(n_parts + 1, dtype=np.int64)
         self._c_f = np.zeros((n_parts + 1, 3))
         start_robots(self.fp, self.ip, self.fs, self.ist, self.gs, self._exps)
+        self.extra_rules, self.extra_counts = [], Counter()
+        if self.external is not None:  # as Line: reset with the policy stream, then attach
+            self.external.reset(self.specs, np.random.default_rng(self._policy_seed))
+            attach = getattr(self.external, "attach", None)
+            if callable(attach):
+                attach(self.belt)
 
     def advance(self, until: float) -> int:
         """Process every event before ``until``; the status (0, or a buffer that ran out)."""
@@ -204,6 +237,53 @@ class FastLine:
             self._c_f, min(until, self.end_at),
         )  # fmt: skip
         return int(status)
+
+    def _answer(self) -> None:
+        """Ask the external policy about the decision the kernel stopped at (ST_CHOOSE)."""
+        assert self.external is not None
+        r, n = int(self.gs[L.DROBOT]), int(self.gs[L.DN])
+        c_f = self._c_f
+        d = Decision(
+            self.specs[r],
+            float(self.fs[r, L.T0]),
+            (float(self.fs[r, L.TOOLX]), float(self.fs[r, L.TOOLY])),
+            self._c_i[:n].tolist(),
+            c_f[:n, 0].tolist(),
+            c_f[:n, 1].tolist(),
+            c_f[:n, 2].tolist(),
+        )
+        k = self.external.choose(d)
+        if k < 0 or k >= n:  # as Gateway.choose
+            raise IndexError(
+                f"policy {type(self.external).__name__} chose candidate {k} of {n} for robot {r}"
+            )
+        rule = getattr(self.external, "last_rule", None)
+        self.extra_counts[(r, rule or "?")] += 1
+        choose_external(
+            self.fp, self.gp, self.fs, self.ist, self.gs, self.holder, self.left_at,
+            self._c_i, self._c_f, k, self._code(rule),
+        )  # fmt: skip
+
+    def _code(self, rule: str | None) -> int:
+        """The rule code recorded with a pick: RULE_NAMES' index, or an extra name's."""
+        if rule is None:
+            return L.NO_RULE
+        if rule in L.RULE_NAMES[:-1]:
+            return L.RULE_NAMES.index(rule)
+        if rule not in self.extra_rules:
+            self.extra_rules.append(rule)
+        return len(L.RULE_NAMES) + self.extra_rules.index(rule)
+
+    # -- hold mode -------------------------------------------------------------------------
+    def pending(self) -> list[int]:
+        """The robots of the decision epoch the kernel paused at (hold mode, ST_EPOCH)."""
+        return [int(r) for r in np.flatnonzero(self.ist[:, L.PENDING])]
+
+    def release(self, rules: Sequence[int] | None = None) -> None:
+        """Gateway.release: set each robot's rule code (when given), resume the pending ones."""
+        if rules is not None:
+            self.ip[:, L.RULE] = rules
+        release(self.fs, self.ist, self.gs, self.gf[L.NOW])
 
     def finish(self) -> int:
         """End the run at ``end_at`` (after :meth:`advance` to it): open spans are closed."""
@@ -226,8 +306,8 @@ class FastLine:
         parts = PartRecords(
             fed_at=self.fed,
             robot=self.rec_i[:, 0],
-            rule=self.rec_i[:, 1],  # a rule code of L.RULE_NAMES; -1 where not picked
-            rule_names=L.RULE_NAMES[:-1],
+            rule=self.rec_i[:, 1],  # a code of rule_names; -1 where not picked or unnamed
+            rule_names=(*L.RULE_NAMES, *self.extra_rules),
             decided_at=self.rec_f[:, 0],
             placed_at=self.rec_f[:, 2],
             picked=~np.isnan(self.rec_f[:, 1]),
@@ -245,8 +325,8 @@ class FastLine:
         rec = Recorder(len(self.fed))  # defaults for every list, then the run's values
         # arrays where Recorder keeps lists: its tables read them with np.asarray / np.where
         rec.robot = self.rec_i[:, 0]  # type: ignore[assignment]
-        names = np.array([*L.RULE_NAMES[:-1], None], dtype=object)
-        rec.rule = names[self.rec_i[:, 1]].tolist()  # code -1 (not picked) -> None
+        names = np.array([*L.RULE_NAMES, *self.extra_rules, None], dtype=object)
+        rec.rule = names[self.rec_i[:, 1]].tolist()  # code -1 (not picked, no name) -> None
         rec.decided_at = self.rec_f[:, 0]  # type: ignore[assignment]
         rec.picked_at = self.rec_f[:, 1]  # type: ignore[assignment]
         rec.placed_at = self.rec_f[:, 2]  # type: ignore[assignment]
@@ -259,19 +339,17 @@ class FastLine:
         counts: Counter[tuple[int, str]] = Counter()
         for r, c in zip(*np.nonzero(self.counts), strict=True):
             counts[(int(r), L.RULE_NAMES[c])] = int(self.counts[r, c])
-        rec.decisions = counts
+        rec.decisions = counts + self.extra_counts
         return rec
 
     @property
-    def belt(self) -> Any:
-        """What Recorder.parts_frame reads of a belt."""
-        return _BeltView(self.fed, self.y, self.kind, self.scenario.belt.speed)
+    def belt(self) -> BeltView:
+        """The belt as policies and Recorder.parts_frame read it (live over the arrays)."""
+        b = self.scenario.belt
+        arrays = (self.fed, self.y, self.holder, self.left_at)
+        return BeltView(b.length, b.width, b.speed, b.grid, self.last_end, arrays, self.kind, self.gf)
 
     @property
     def now(self) -> float:
         return float(self.gf[L.NOW])
 
-
-class _BeltView:
-    def __init__(self, fed: np.ndarray, y: np.ndarray, kind: list[str] | None, speed: float):
-        self.fed, self.y, self.kind, self.speed = fed, y, kind, speed

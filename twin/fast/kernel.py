@@ -34,16 +34,21 @@ from twin.fast.layout import (
     CHANGE,
     CLAIMED,
     DOWN,
+    DN,
     DOWN0,
+    DROBOT,
     EPOCHS,
     EXPECTED,
     EXPIDX,
+    EXTERNAL,
     FAILMODE,
     FIFO,
     FIXED,
     HALF,
     HINT_HI,
     HINT_LO,
+    HOLD,
+    LASTCLAIM,
     LD,
     LIFO,
     MASK,
@@ -51,8 +56,10 @@ from twin.fast.layout import (
     MTTR,
     NEXTFAIL,
     NOOP,
+    NOOPPART,
     NORMAL,
     NOW,
+    NPENDING,
     NSPANS,
     PART,
     PC,
@@ -63,10 +70,12 @@ from twin.fast.layout import (
     PC_NOOP,
     PC_PLACE,
     PC_START,
+    PENDING,
     PICK,
     PLACE,
     QUAD,
     RULE,
+    RULENOW,
     S_BLOCKED,
     S_DOWN,
     S_INTERRUPTED,
@@ -77,6 +86,8 @@ from twin.fast.layout import (
     SEQ,
     SIRO,
     SIROIDX,
+    ST_CHOOSE,
+    ST_EPOCH,
     ST_EXPS,
     ST_SIRO,
     ST_SPANS,
@@ -154,7 +165,7 @@ def _schedule(fs, ist, gs, r, at, prio, pc):
 
 @compiled(inline=True)
 def _span(gs, sp_i, sp_f, r, state, start, end):
-    if end > start:
+    if end > start and sp_i.shape[0] > 0:  # a run given no span buffer records no spans
         k = gs[NSPANS]
         if k >= sp_i.shape[0]:
             gs[STATUS] = ST_SPANS
@@ -291,7 +302,8 @@ def _choose(fp, ip, gp, gs, siro, r, n, c_f):
 
 @compiled()
 def _next_entry(gp, fed, holder, now, x, hint):
-    """Belt.next_entry: time until the next unclaimed part upstream of x reaches it."""
+    """Belt.next_entry: time until the next unclaimed part upstream of x reaches it, and
+    that part's index (len(fed) and inf when there is none)."""
     v = gp[V]
     lag = x / v
     i = _bisect(fed, now - lag, True, hint)
@@ -299,23 +311,42 @@ def _next_entry(gp, fed, holder, now, x, hint):
     while i < n and (holder[i] != FREE or fed[i] + lag <= now):
         i += 1
     if i >= n:
-        return math.inf
-    return fed[i] + lag - now
+        return math.inf, n
+    return fed[i] + lag - now, i
 
 
 # -- the gateway ---------------------------------------------------------------------------
 @compiled()
-def _open(fs, ist, gs, col, now):
-    """Open an epoch for the robots flagged in column ``col`` of ``ist``."""
+def _open(fs, ist, gi, gs, col, now):
+    """Open an epoch for the robots flagged in column ``col`` of ``ist`` (in hold mode: mark
+    them pending; :func:`release` resumes them once the caller has set their rules)."""
     gs[EPOCHS] += 1
     for i in range(ist.shape[0]):  # in robot order, so upstream robots claim first
         if ist[i, col]:
-            ist[i, WAITING] = 0
-            _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
+            if gi[HOLD]:
+                if not ist[i, PENDING]:
+                    ist[i, PENDING] = 1
+                    gs[NPENDING] += 1
+            else:
+                ist[i, WAITING] = 0
+                _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
 
 
 @compiled()
-def _maybe_all(fs, ist, gs, now):
+def release(fs, ist, gs, now):
+    """Gateway.release: resume the pending robots, in robot order."""
+    for i in range(ist.shape[0]):
+        if ist[i, PENDING]:
+            ist[i, PENDING] = 0
+            ist[i, WAITING] = 0
+            _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
+    gs[NPENDING] = 0
+    if gs[STATUS] == ST_EPOCH:
+        gs[STATUS] = 0
+
+
+@compiled()
+def _maybe_all(fs, ist, gi, gs, now):
     n = ist.shape[0]
     some = False
     for i in range(n):
@@ -326,7 +357,7 @@ def _maybe_all(fs, ist, gs, now):
     if some:
         for i in range(n):
             ist[i, MASK] = 1 - ist[i, DOWN]
-        _open(fs, ist, gs, MASK, now)
+        _open(fs, ist, gi, gs, MASK, now)
 
 
 @compiled(inline=True)
@@ -342,7 +373,7 @@ def _expected_waiting(ist):
 
 
 @compiled()
-def _join_any(fs, ist, gs, r, now):
+def _join_any(fs, ist, gi, gs, r, now):
     n = ist.shape[0]
     some, _ = _expected_waiting(ist)
     if not some:
@@ -358,7 +389,7 @@ def _join_any(fs, ist, gs, r, now):
         for i in range(n):
             ist[i, MASK] = ist[i, EXPECTED]
             ist[i, EXPECTED] = 0
-        _open(fs, ist, gs, MASK, now)
+        _open(fs, ist, gi, gs, MASK, now)
 
 
 @compiled()
@@ -366,14 +397,14 @@ def _down(fs, ist, gi, gs, r, now):
     ist[r, WAITING] = 0
     ist[r, EXPECTED] = 0
     if gi[SCHEME] == T_ALL:
-        _maybe_all(fs, ist, gs, now)
+        _maybe_all(fs, ist, gi, gs, now)
     elif gi[SCHEME] == T_ANY:
         some, sub = _expected_waiting(ist)
         if some and sub:  # the epoch opens, and the next free robot starts a new one
             for i in range(ist.shape[0]):
                 ist[i, MASK] = ist[i, EXPECTED]
                 ist[i, EXPECTED] = 0
-            _open(fs, ist, gs, MASK, now)
+            _open(fs, ist, gi, gs, MASK, now)
 
 
 @compiled()
@@ -382,10 +413,15 @@ def _free(fs, ist, gi, gs, r, now):
     ist[r, ACTIVE] = 0
     fs[r, WAIT0] = now
     ist[r, WAITING] = 1
-    if gi[SCHEME] == T_ALL:
-        _maybe_all(fs, ist, gs, now)
+    if gi[SCHEME] == T_CONTINUE:  # in hold mode only: an epoch of one
+        for i in range(ist.shape[0]):
+            ist[i, MASK] = 0
+        ist[r, MASK] = 1
+        _open(fs, ist, gi, gs, MASK, now)
+    elif gi[SCHEME] == T_ALL:
+        _maybe_all(fs, ist, gi, gs, now)
     else:
-        _join_any(fs, ist, gs, r, now)
+        _join_any(fs, ist, gi, gs, r, now)
 
 
 # -- the robot -----------------------------------------------------------------------------
@@ -399,6 +435,7 @@ def run_events(
     v = gp[V]
     scheme = gi[SCHEME]
     capacity = gi[CAPACITY]
+    waits = scheme != T_CONTINUE or gi[HOLD]  # a free robot reports to the gateway
     while gs[STATUS] == 0:
         r = -1
         for i in range(n_rob):
@@ -415,6 +452,9 @@ def run_events(
                         )
                     ):
                         r = i
+        if gs[NPENDING] > 0 and (r < 0 or fs[r, WAKE] > gf[NOW]):
+            gs[STATUS] = ST_EPOCH  # the epoch's instant is over: the caller answers it
+            break
         if r < 0 or fs[r, WAKE] >= stop_at:
             break
         now = fs[r, WAKE]
@@ -436,7 +476,7 @@ def run_events(
             ist[r, CLAIMED] = -1
             t0 = fs[r, T0]
             rec_i[part, 0] = r
-            rec_i[part, 1] = ip[r, RULE]
+            rec_i[part, 1] = ist[r, RULENOW]
             rec_f[part, 0] = t0
             rec_f[part, 1] = t0 + fs[r, TAPP]
             v_r = fp[r, VR]
@@ -482,7 +522,7 @@ def run_events(
             _span(gs, sp_i, sp_f, r, S_DOWN, fs[r, DOWN0], now)
             ist[r, DOWN] = 0
             fs[r, NEXTFAIL] = now + _draw(fp, ip, ist, gs, exps, r, MTBF)
-            if scheme != T_CONTINUE:
+            if waits:
                 _free(fs, ist, gi, gs, r, now)
             else:
                 decide = True
@@ -494,7 +534,7 @@ def run_events(
                 _schedule(
                     fs, ist, gs, r, now + _draw(fp, ip, ist, gs, exps, r, MTTR), NORMAL, PC_DOWN
                 )
-            elif scheme != T_CONTINUE:
+            elif waits:
                 _free(fs, ist, gi, gs, r, now)
             else:
                 decide = True
@@ -512,7 +552,7 @@ def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i
     fs[r, T0] = now
     if n == 0:
         counts[r, NOOP] += 1
-        wait = _next_entry(gp, fed, holder, now, fp[r, BA], ist[r, HINT_HI])
+        wait, ist[r, NOOPPART] = _next_entry(gp, fed, holder, now, fp[r, BA], ist[r, HINT_HI])
         tick = gp[TICK]
         if tick < wait:
             wait = tick
@@ -520,8 +560,32 @@ def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i
             wait = tick
         _schedule(fs, ist, gs, r, now + wait, NORMAL, PC_NOOP)
         return
+    rule = ip[r, RULE]
+    if rule == EXTERNAL:  # the caller chooses: choose_external resumes
+        gs[STATUS] = ST_CHOOSE
+        gs[DROBOT] = r
+        gs[DN] = n
+        return
     k = _choose(fp, ip, gp, gs, siro, r, n, c_f)
-    counts[r, ip[r, RULE]] += 1
+    counts[r, rule] += 1
+    _claim(fs, ist, holder, left_at, c_i, c_f, r, now, v, k, rule)
+    _schedule(fs, ist, gs, r, now + (fs[r, TAPP] + fp[r, PICK]), NORMAL, PC_APPROACH)
+
+
+@compiled()
+def choose_external(fp, gp, fs, ist, gs, holder, left_at, c_i, c_f, k, rule):
+    """The caller's answer to ST_CHOOSE: candidate ``k``, recorded under rule code ``rule``
+    (a code of layout.RULE_NAMES, a caller's own code above them, or NO_RULE)."""
+    r = gs[DROBOT]
+    now = fs[r, T0]
+    _claim(fs, ist, holder, left_at, c_i, c_f, r, now, gp[V], k, rule)
+    _schedule(fs, ist, gs, r, now + (fs[r, TAPP] + fp[r, PICK]), NORMAL, PC_APPROACH)
+    gs[STATUS] = 0
+
+
+@compiled(inline=True)
+def _claim(fs, ist, holder, left_at, c_i, c_f, r, now, v, k, rule):
+    """Claim candidate ``k`` for the approach (Robot.working after the policy's answer)."""
     part = c_i[k]
     t = c_f[k, 2]
     fs[r, TX] = c_f[k, 0] + v * t
@@ -531,8 +595,9 @@ def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i
     left_at[part] = now + t
     ist[r, CLAIMED] = part
     ist[r, PART] = part
+    ist[r, RULENOW] = rule
+    ist[r, LASTCLAIM] = part
     fs[r, APPROACH] = now + t
-    _schedule(fs, ist, gs, r, now + (t + fp[r, PICK]), NORMAL, PC_APPROACH)
 
 
 @compiled()
@@ -544,6 +609,7 @@ def start_robots(fp, ip, fs, ist, gs, exps):
         fs[r, NEXTFAIL] = math.inf
         fs[r, APPROACH] = -math.inf
         ist[r, CLAIMED] = -1
+        ist[r, LASTCLAIM] = -1
         if ip[r, FAILMODE] != 0:
             fs[r, NEXTFAIL] = _draw(fp, ip, ist, gs, exps, r, MTBF)
     for r in range(ist.shape[0]):

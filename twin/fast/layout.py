@@ -15,12 +15,14 @@ NOFAIL, EXPONENTIAL, FIXED = range(3)
 # rule codes, then the NooP column of the decision counts
 FIFO, LIFO, SIRO, SD, LD, SPT, NOOP = range(7)
 RULE_NAMES = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT", "NooP")
+EXTERNAL = 7  # ip[r, RULE]: the caller chooses (the kernel stops with ST_CHOOSE)
+NO_RULE = -1  # the rule code of a pick whose policy names no rule ("?")
 # line float parameters gp[.]
 V, TICK, END_AT, CHANGE, HALF, TWO = range(6)
 N_GP = 6
 # line int parameters gi[.]
-SCHEME, CAPACITY = range(2)
-N_GI = 2
+SCHEME, CAPACITY, HOLD = range(3)  # HOLD: pause at every decision epoch (environments)
+N_GI = 3
 T_CONTINUE, T_ALL, T_ANY = range(3)
 SCHEME_CODES = {"t_continue": T_CONTINUE, "t_all": T_ALL, "t_any": T_ANY}
 # robot float state fs[r, .]
@@ -31,10 +33,15 @@ PC, ACTIVE, WPRIO, WSEQ, CLAIMED, PART, DOWN, WAITING, EXPECTED = range(9)
 BINCOUNT, BOXES, EXPIDX = range(9, 12)
 HINT_LO, HINT_HI = range(12, 14)  # last answers of the robot's belt bisections
 MASK = 14  # scratch: the robots of a decision epoch being opened
-N_IS = 15
+RULENOW = 15  # rule code of the robot's current claim (recorded with its pick)
+PENDING = 16  # hold mode: the robot is in the epoch the caller must answer
+LASTCLAIM = 17  # the part of the robot's last claim (environments reset it to -1)
+NOOPPART = 18  # the part whose entry timed the robot's last NooP (n parts: none)
+N_IS = 19
 # line int state gs[.]
 SEQ, EPOCHS, SIROIDX, NSPANS, STATUS = range(5)
-N_GS = 5
+DROBOT, DN, NPENDING = range(5, 8)  # ST_CHOOSE: the robot, its candidates; hold: epoch size
+N_GS = 8
 NOW = 0  # gf[NOW]
 # program counters: where a robot resumes when its wake-up is processed
 PC_START, PC_NOOP, PC_HELD, PC_APPROACH, PC_PLACE, PC_INTERRUPT, PC_DOWN = range(7)
@@ -45,3 +52,5 @@ S_WAIT, S_INTERRUPTED, S_NOOP, S_BLOCKED, S_DOWN = range(5)
 SPAN_NAMES = ("wait", "interrupted", "noop", "blocked", "down")
 # run status
 ST_OK, ST_SPANS, ST_SIRO, ST_EXPS = range(4)
+ST_CHOOSE = 4  # a robot with rule EXTERNAL has candidates: call choose_external
+ST_EPOCH = 5  # hold mode: a decision epoch is pending: call release
