@@ -46,10 +46,15 @@ class Unsupported(ValueError):
     """The fast engine cannot run this line as asked; the message says why."""
 
 
+def is_rule_mix(policy: Policy) -> bool:
+    """A plain rule mix (policies.base.RuleMix, not a subclass): compiled, not called back."""
+    cls = type(policy)
+    return cls.__name__ == "RuleMix" and cls.__module__ == "policies.base"
+
+
 def rule_codes(policy: Policy, n_robots: int) -> list[int] | None:
     """Per-robot rule codes when ``policy`` is a plain rule mix (policies.base.RuleMix)."""
-    cls = type(policy)
-    if cls.__name__ != "RuleMix" or cls.__module__ != "policies.base":
+    if not is_rule_mix(policy):
         return None
     rules = list(getattr(policy, "rules", []))
     if len(rules) != n_robots or any(r not in L.RULE_NAMES[:-1] for r in rules):
@@ -126,12 +131,13 @@ class FastLine:
         self.extra_rules: list[str] = []  # rule names of external choices beyond RULE_NAMES
         self.extra_counts: Counter[tuple[int, str]] = Counter()
         if policy is not None:
-            codes = rule_codes(policy, n)
+            mix = is_rule_mix(policy)
+            if mix:
+                policy.reset(self.specs, streams[2])  # as Line resets it (a mix of one widens)
+            codes = rule_codes(policy, n) if mix else None
             if codes is None:
                 self.external = policy
                 codes = [L.EXTERNAL] * n
-            else:
-                policy.reset(self.specs, streams[2])
         else:
             names = list(rules or ["FIFO"])
             codes = [
