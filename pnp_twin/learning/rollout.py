@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ from pnp_twin.learning.envs.driver import EnvError, check_rules
 from policies.rules import RULES
 from twin.camera import BeltCamera
 from twin.decision import Decision, RobotSpec
-from twin.feeder import resampled
+from twin.feeder import Feeder, resampled, splice
 from twin.line import Line
 from twin.scenario import Scenario
 
@@ -161,11 +162,61 @@ def future_seed(episode: int, decision: int, sample: int) -> int:
     return int(np.random.SeedSequence([episode, decision, sample]).generate_state(1)[0])
 
 
-def label_episode(scenario: Scenario, seed: int, settings: LabelSettings) -> Labels:
+def label_episode(
+    scenario: Scenario, seed: int, settings: LabelSettings, engine: str = "fast"
+) -> Labels:
     """Run one episode (``scenario`` under t_continue, feeding ``episode_time`` s) and label
-    its decisions in the window; see the module docstring."""
-    s = settings
-    base_index = s.rules.index(s.base)
+    its decisions in the window; see the module docstring.
+
+    ``engine`` "fast" (or "auto") forks the compiled line at each labelled decision and runs
+    all its continuations in one compiled call (:func:`twin.fast.rollouts.continue_each`);
+    "simpy" replays each continuation from t = 0 on the SimPy twin. The labels are the same.
+    """
+    if engine == "simpy":
+        return _label_replaying(scenario, seed, settings)
+    return _label_forking(scenario, seed, settings)
+
+
+def _label_forking(scenario: Scenario, seed: int, s: LabelSettings) -> Labels:
+    from twin.fast import layout as L
+    from twin.fast.engine import FastLine
+    from twin.fast.rollouts import continue_each
+
+    behaviour = _Behaviour(s, np.random.default_rng([seed, 1]))
+    line = FastLine(scenario, behaviour, seed=seed, duration=s.episode_time)
+    line.start(*line._rooms())
+    camera = BeltCamera(scenario, s.channels)
+    camera.attach(line.belt)
+    behaviour.camera = camera
+    transit = line.last_end / scenario.belt.speed
+    own = (line.fed, line.y, line.kind)
+    rows = []
+    while (status := line.advance(s.window[1])) == L.ST_CHOOSE:
+        t = line.now
+        fork = line.fork() if s.window[0] <= t else None
+        line.answer()
+        j = len(behaviour.records) - 1
+        rec = behaviour.records[j]
+        if fork is None or len(set(rec.picks)) < 2:
+            continue
+        lo, hi = t - transit, t + s.horizon
+        picks = list(dict.fromkeys(rec.picks))
+        other = (Feeder.seeded(scenario, future_seed(seed, j, m)) for m in range(s.futures))
+        futures = [splice(own, f.stream(s.episode_time), t)[:2] for f in other]
+        n_kept = int(np.searchsorted(line.fed, t, "right"))
+        stop = min(line.end_at, hi + transit)
+        counts = continue_each(fork, futures, n_kept, picks, s.base, stop, (lo, hi))
+        if counts is None:  # a pre-drawn stream ran out: replay these continuations
+            total = _replayed_totals(scenario, seed, s, behaviour.chosen[:j], rec, j, transit)
+        else:
+            total = {p: float(c) for p, c in zip(picks, counts, strict=True)}
+        rows.append(_row(rec, total, s))
+    if status != L.ST_OK:  # a pre-drawn stream of the episode ran out: replay it all
+        return _label_replaying(scenario, seed, s)
+    return _labels(rows, camera.shape, len(s.rules))
+
+
+def _label_replaying(scenario: Scenario, seed: int, s: LabelSettings) -> Labels:
     behaviour = _Behaviour(s, np.random.default_rng([seed, 1]))
     line = Line(scenario, behaviour, seed=seed, duration=s.episode_time)
     camera = BeltCamera(scenario, s.channels)
@@ -173,28 +224,50 @@ def label_episode(scenario: Scenario, seed: int, settings: LabelSettings) -> Lab
     behaviour.camera = camera
     line.run()
     transit = line.last_end / scenario.belt.speed
-    obs, robots, adv = [], [], []
+    rows = []
     for j, rec in enumerate(behaviour.records):
         if not s.window[0] <= rec.time < s.window[1] or len(set(rec.picks)) < 2:
             continue
-        lo, hi = rec.time - transit, rec.time + s.horizon
-        total = dict.fromkeys(rec.picks, 0.0)
-        for m in range(s.futures):
-            future = resampled(scenario, seed, future_seed(seed, j, m), rec.time, s.episode_time)
-            for part in total:
-                run = Line(
-                    scenario,
-                    _Replay(behaviour.chosen[:j], part, s.base),
-                    seed=seed,
-                    duration=s.episode_time,
-                    parts=future,
-                )
-                run.env.run(until=min(run.end_at, hi + transit))
-                total[part] += _gripped(run, lo, hi)
-        q = np.array([total[p] / s.futures for p in rec.picks])
-        obs.append(rec.obs)
-        robots.append(rec.robot)
-        adv.append(q - q[base_index])
-    if not obs:
-        return Labels.empty(camera.shape, len(s.rules))
+        total = _replayed_totals(scenario, seed, s, behaviour.chosen[:j], rec, j, transit)
+        rows.append(_row(rec, total, s))
+    return _labels(rows, camera.shape, len(s.rules))
+
+
+def _replayed_totals(
+    scenario: Scenario,
+    seed: int,
+    s: LabelSettings,
+    prefix: list[int],
+    rec: _Record,
+    j: int,
+    transit: float,
+) -> dict[int, float]:
+    """Grips in the label's window per distinct pick, summed over the sampled futures, each
+    continuation replayed from t = 0 with the recorded choices."""
+    lo, hi = rec.time - transit, rec.time + s.horizon
+    total = dict.fromkeys(rec.picks, 0.0)
+    for m in range(s.futures):
+        future = resampled(scenario, seed, future_seed(seed, j, m), rec.time, s.episode_time)
+        for part in total:
+            run = Line(
+                scenario,
+                _Replay(prefix, part, s.base),
+                seed=seed,
+                duration=s.episode_time,
+                parts=future,
+            )
+            run.env.run(until=min(run.end_at, hi + transit))
+            total[part] += _gripped(run, lo, hi)
+    return total
+
+
+def _row(rec: _Record, total: dict[int, float], s: LabelSettings) -> tuple[Any, int, Any]:
+    q = np.array([total[p] / s.futures for p in rec.picks])
+    return rec.obs, rec.robot, q - q[s.rules.index(s.base)]
+
+
+def _labels(rows: list[tuple[Any, int, Any]], shape: tuple[int, int, int], k: int) -> Labels:
+    if not rows:
+        return Labels.empty(shape, k)
+    obs, robots, adv = zip(*rows, strict=True)
     return Labels(np.stack(obs), np.asarray(robots, np.int64), np.asarray(adv))

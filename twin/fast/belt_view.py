@@ -63,4 +63,3 @@ class BeltView:
     def exit_at(self, part: int) -> float:
         """When ``part`` passes the end of the last workspace (picked or not)."""
         return exit_time(float(self.fed[part]), self.end, self.speed)
-

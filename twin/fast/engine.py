@@ -189,7 +189,7 @@ class FastLine:
             self.start(*rooms)
             status = self.advance(self.end_at)
             while status == L.ST_CHOOSE:
-                self._answer()
+                self.answer()
                 status = self.advance(self.end_at)
             if status == L.ST_OK:
                 status = self.finish()
@@ -244,7 +244,7 @@ class FastLine:
         )  # fmt: skip
         return int(status)
 
-    def _answer(self) -> None:
+    def answer(self) -> None:
         """Ask the external policy about the decision the kernel stopped at (ST_CHOOSE)."""
         assert self.external is not None
         r, n = int(self.gs[L.DROBOT]), int(self.gs[L.DN])
@@ -353,9 +353,10 @@ class FastLine:
         """The belt as policies and Recorder.parts_frame read it (live over the arrays)."""
         b = self.scenario.belt
         arrays = (self.fed, self.y, self.holder, self.left_at)
-        return BeltView(b.length, b.width, b.speed, b.grid, self.last_end, arrays, self.kind, self.gf)
+        return BeltView(
+            b.length, b.width, b.speed, b.grid, self.last_end, arrays, self.kind, self.gf
+        )
 
     @property
     def now(self) -> float:
         return float(self.gf[L.NOW])
-
