@@ -12,8 +12,10 @@ and per CPU second of this process (the steadier figure on a shared machine). Pa
 the ``eval.csv`` of a finished async run (``--run``) and prints the training wall time
 until its greedy policy first beat the best single rule on the validation seeds by a margin
 outside the paired 95 % confidence interval (a ``--targets rollout`` run's too). Part 3
-labels ``--rollout-episodes`` episodes for rollout targets in this process and prints
-labelled decisions per second (``--workers W`` runs W such processes).
+labels ``--rollout-episodes`` episodes for rollout targets in this process on both engines,
+side by side (the SimPy twin replaying each continuation from t = 0; the fast engine
+forking at the decision), checks that the labels are identical and prints labelled
+decisions per CPU second of each and their ratio.
 """
 
 from __future__ import annotations
@@ -49,16 +51,31 @@ def train_rate(mode: str, steps: int, device: str, scenario: str) -> tuple[float
         return steps / (time.perf_counter() - t0), steps / (time.process_time() - c0)
 
 
-def rollout_rate(episodes: int, scenario: str) -> tuple[float, int]:
-    """(labelled decisions per wall second, labels) of ``episodes`` rollout episodes."""
+def rollout_rates(episodes: int, scenario: str) -> tuple[dict[str, float], int, bool]:
+    """(labelled decisions per CPU second per engine, labels, labels identical) of
+    ``episodes`` rollout episodes labelled on each engine."""
+    import numpy as np
+
     from pnp_twin.learning.rollout import LabelSettings, label_episode
     from twin.loader import load_scenario
 
     line = load_scenario(scenario, {"termination": "t_continue", "warmup": 0.0})
-    t0, n = time.perf_counter(), 0
-    for e in range(episodes):
-        n += len(label_episode(line, 2_000_000 + e, LabelSettings()))
-    return n / (time.perf_counter() - t0), n
+    label_episode(line, 1, LabelSettings(futures=1), engine="fast")  # load the compiled code
+    rates, out = {}, {}
+    for engine in ("simpy", "fast"):
+        c0 = time.process_time()
+        out[engine] = [
+            label_episode(line, 2_000_000 + e, LabelSettings(), engine=engine)
+            for e in range(episodes)
+        ]
+        n = sum(len(x) for x in out[engine])
+        rates[engine] = n / (time.process_time() - c0)
+    same = all(
+        np.array_equal(getattr(a, f), getattr(b, f))
+        for a, b in zip(out["simpy"], out["fast"], strict=True)
+        for f in ("obs", "robot", "advantage")
+    )
+    return rates, n, same
 
 
 def first_beat(run: Path) -> dict[str, str] | None:
@@ -84,8 +101,12 @@ def main() -> None:
         wall, cpu = train_rate(mode, a.steps, a.device, a.scenario)
         print(f"{mode:>6}: {wall:8.0f} steps/s wall, {cpu:8.0f} steps/s CPU ({a.device})")
     if a.rollout_episodes:
-        rate, n = rollout_rate(a.rollout_episodes, a.scenario)
-        print(f"rollout targets: {rate:.1f} labelled decisions/s in one process ({n} labels)")
+        rates, n, same = rollout_rates(a.rollout_episodes, a.scenario)
+        print(
+            f"rollout targets ({n} labels, identical: {same}): simpy {rates['simpy']:.1f}, "
+            f"fast {rates['fast']:.1f} labelled decisions per CPU second: "
+            f"{rates['fast'] / rates['simpy']:.1f}x"
+        )
     if a.run is not None:
         row = first_beat(a.run)
         if row is None:

@@ -84,10 +84,11 @@ class RolloutArgs:
     eval_duration: float = 300.0
     resume: bool = False
     overrides: dict[str, Any] = field(default_factory=dict)
-    engine: str = "auto"  # of the validation's rule baselines (same results on each)
+    engine: str = "auto"
+    """Engine of the labelling rollouts and the validation runs (same results on each)."""
 
 
-def _label(job: tuple[Scenario, int, LabelSettings]) -> Labels:
+def _label(job: tuple[Scenario, int, LabelSettings, str]) -> Labels:
     """Worker entry point (labelling runs the twin only: no torch)."""
     return label_episode(*job)
 
@@ -165,7 +166,7 @@ def train_rollout(
     while done < args.episodes:
         upto = min(args.episodes, done + args.round_episodes)
         seeds = [EPISODE_SEED_BASE + 10_000 * args.seed + i for i in range(done, upto)]
-        jobs = [(scenario, e, args.settings) for e in seeds]
+        jobs = [(scenario, e, args.settings, args.engine) for e in seeds]
         # results in episode order, so the labels do not depend on the worker count
         if args.workers > 1:
             parts.extend(pool_map_ordered(_label, jobs, args.workers, PRELOAD))
@@ -203,7 +204,7 @@ def train_rollout(
             "step": len(labels),
             "episodes": done,
             "wall_time": time.perf_counter() - t0,
-            **validate(HDQNPolicy(agent, meta), val_scenario, validation, baselines),
+            **validate(HDQNPolicy(agent, meta), val_scenario, validation, baselines, args.engine),
         }
         eval_log.row([row[c] for c in columns])
         log.info(

@@ -388,7 +388,7 @@ def _evaluate(
     from policies.hdqn.policy import HDQNPolicy
 
     run.agent.q.eval()
-    scores = validate(HDQNPolicy(run.agent, meta), scenario, seeds, baselines)
+    scores = validate(HDQNPolicy(run.agent, meta), scenario, seeds, baselines, run.args.engine)
     run.agent.q.train()
     log.info(
         "step %d: eval G %.2f %% (best rule %s %+.2f +- %.2f)",

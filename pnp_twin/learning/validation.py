@@ -64,13 +64,19 @@ def rule_baselines(
 
 
 def validate(
-    policy: Policy, scenario: Scenario, seeds: list[int], baselines: dict[str, list[float]]
+    policy: Policy,
+    scenario: Scenario,
+    seeds: list[int],
+    baselines: dict[str, list[float]],
+    engine: str = "simpy",
 ) -> dict[str, Any]:
     """The greedy ``policy`` on the validation ``seeds`` against the best single rule there
     (``baselines`` from :func:`rule_baselines`; paired, the same seeds for both): the
-    :data:`VALIDATION_COLUMNS`. It beats the rule when the paired 95 % interval is above 0."""
+    :data:`VALIDATION_COLUMNS`. It beats the rule when the paired 95 % interval is above 0.
+    ``engine``: :func:`twin.run.simulate`'s (same results on each)."""
     best = max(baselines, key=lambda r: float(np.mean(baselines[r])))
-    g = [simulate(scenario, policy, seed=s).kpis["gripping_rate"] for s in seeds]
+    runs = [simulate(scenario, policy, seed=s, engine=engine) for s in seeds]
+    g = [r.kpis["gripping_rate"] for r in runs]
     diff = np.asarray(g) - np.asarray(baselines[best])
     d_mean, d_low, _ = t_interval(list(diff), 0.95)
     return {

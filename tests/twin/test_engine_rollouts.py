@@ -118,9 +118,8 @@ def test_continue_each_sums_the_window_over_futures() -> None:
     n_kept = int(np.searchsorted(fork.fed, t, "right"))
     futures = [splice(own, Feeder.seeded(sc, m).stream(sc.duration), t) for m in (5, 6)]
     lo, hi, stop = t - 1.0, t + 2.0, t + 3.5
-    totals = continue_each(
-        fork, [f[:2] for f in futures], n_kept, list(range(n)), "SPT", stop, (lo, hi)
-    )
+    streams = [f[:2] for f in futures]
+    totals = continue_each(fork, streams, n_kept, list(range(n)), "SPT", stop, (lo, hi))
     assert totals is not None and len(totals) == n
     for k in range(n):
         want = 0
@@ -132,4 +131,4 @@ def test_continue_each_sums_the_window_over_futures() -> None:
     with pytest.raises(ValueError, match="not stopped at a decision"):
         done = FastLine(sc, rules=["SPT"])
         done.run()
-        continue_each(done, [f[:2] for f in futures], n_kept, [0], "SPT", stop, (lo, hi))
+        continue_each(done, streams, n_kept, [0], "SPT", stop, (lo, hi))

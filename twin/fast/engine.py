@@ -22,6 +22,7 @@ import copy
 import math
 from collections import Counter
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -349,8 +350,9 @@ class FastLine:
         return rec
 
     @property
-    def belt(self) -> BeltView:
-        """The belt as policies and Recorder.parts_frame read it (live over the arrays)."""
+    def belt(self) -> Any:
+        """The belt as policies, cameras and Recorder.parts_frame read it: a
+        :class:`~twin.fast.belt_view.BeltView` (a twin.belt.Belt to them, live over the arrays)."""
         b = self.scenario.belt
         arrays = (self.fed, self.y, self.holder, self.left_at)
         return BeltView(

@@ -66,6 +66,7 @@ if ENV_ID not in gymnasium.registry:
     gymnasium.register(
         id=ENV_ID,
         entry_point="pnp_twin.learning.envs.gym_env:PickPlaceEnv",
+        vector_entry_point="pnp_twin.learning.envs.vector_env:PickPlaceVectorEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
