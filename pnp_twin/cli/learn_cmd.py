@@ -371,8 +371,8 @@ def evaluate_cmd(
         Engine,
         typer.Option(
             "--engine",
-            help="Engine of the rule and mix runs: simpy, fast or auto (same results); the "
-            "trained policy always runs on simpy.",
+            help="Engine of every run, the trained policy's too: simpy, fast or auto (same "
+            "results).",
         ),
     ] = Engine.auto,
 ) -> None:

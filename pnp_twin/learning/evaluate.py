@@ -117,9 +117,9 @@ def compare(
     and the best mix on ``seeds`` seeds.
 
     ``duration`` and ``termination`` override the scenario's for every policy alike.
-    ``engine`` (simpy | fast | auto, same results) runs the rules and mixes; the trained
-    policy is a Python object, so auto runs it on simpy (and fast refuses it).
-    ``Comparison.engines`` says which engine ran each policy.
+    ``engine`` (simpy | fast | auto, same results) runs every policy (the trained one, a
+    Python object, through the fast engine's callback). ``Comparison.engines`` says which
+    engine ran each policy.
     """
     changes: dict[str, object] = {}
     if duration is not None:
@@ -138,8 +138,7 @@ def compare(
     engines: dict[str, str] = {}
     g: dict[str, list[float]] = {}
     for name, make in makers.items():
-        asked = "auto" if name == reference and engine == "fast" else engine
-        g[name], engines[name] = _rates(line, make, seed_list, asked)
+        g[name], engines[name] = _rates(line, make, seed_list, engine)
     ref = np.asarray(g[reference])
     rows = []
     for name, values in g.items():

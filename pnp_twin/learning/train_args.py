@@ -97,8 +97,8 @@ class TrainArgs:
     threads: int = 1
     """torch CPU threads (the machine is shared)."""
     engine: str = "auto"
-    """Engine of the validation's rule baselines: simpy, fast or auto (same results; the HDQN
-    itself runs on simpy)."""
+    """Engine of the validation runs (the rule baselines and the greedy HDQN) and of rollout
+    labelling: simpy, fast or auto (same results)."""
     overrides: dict[str, Any] = field(default_factory=dict)
     """Dotted-path scenario overrides."""
 
