@@ -7,8 +7,12 @@ under way at the decision was timed by a part the sampled future redraws.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from policies.rules import RULES
 from twin.decision import Decision, RobotSpec
@@ -132,3 +136,40 @@ def test_continue_each_sums_the_window_over_futures() -> None:
         done = FastLine(sc, rules=["SPT"])
         done.run()
         continue_each(done, streams, n_kept, [0], "SPT", stop, (lo, hi))
+
+
+@st.composite
+def _lines(draw: st.DrawFn) -> tuple[Scenario, int]:
+    data: dict[str, Any] = {
+        "duration": 10.0,
+        "warmup": 0.0,
+        "termination": draw(st.sampled_from(["t_continue", "t_all", "t_any"])),
+        "feeder.rate": draw(st.floats(2.0, 16.0)),
+        "robots.count": draw(st.integers(1, 4)),
+        "robots.first_workspace_start": draw(st.sampled_from([0.0, 0.02, 0.3])),
+        "robots.acceleration": draw(st.sampled_from([0.0, 10.0])),
+        "bins.capacity": draw(st.sampled_from([0, 3])),
+        "bins.change_time": 1.0,
+    }
+    if draw(st.booleans()):
+        data.update({"robots.mtbf": draw(st.floats(2.0, 10.0)), "robots.mttr": 1.0})
+    return load_scenario("paper_baseline", data), draw(st.integers(0, 2**20))
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_lines())
+def test_random_continuations_equal_replays(case: tuple[Scenario, int]) -> None:
+    sc, seed = case
+    own = Feeder.seeded(sc, seed).stream(sc.duration)
+    for j, (fork, prefix, n) in enumerate(_decisions(sc, seed, 6.0)):
+        if j % 7:  # every seventh decision, all its candidates
+            continue
+        t = fork.now
+        n_kept = int(np.searchsorted(fork.fed, t, "right"))
+        future = splice(own, Feeder.seeded(sc, seed + 1 + j).stream(sc.duration), t)
+        for k in range(n):
+            rec_i, rec_f = continue_one(fork, future[:2], n_kept, k, "SPT", t + 2.5)
+            decided, picked, robot = _replay(sc, seed, future, prefix, k, t + 2.5)
+            np.testing.assert_array_equal(rec_f[:, 0], decided)
+            np.testing.assert_array_equal(rec_f[:, 1], picked)
+            np.testing.assert_array_equal(rec_i[:, 0], robot)
