@@ -2,13 +2,17 @@
 
     python bench/bench_engine.py                 # everything, paper_27 shortened (--quick)
     python bench/bench_engine.py --full-study    # paper_27 as shipped: 540 runs of 600 s
-    python bench/bench_engine.py --only line,compile,study,cli
+    python bench/bench_engine.py --only line,policy,compile,study,cli
 
 Prints, for each measurement, both engines and their ratio:
 
 - ``line``: one simulated hour of paper_baseline (SD and SPT), CPU seconds of the engine
   alone (``Line`` built and run, against ``FastLine`` built and run) and of the whole
   ``simulate()`` (records, tables and KPIs included), each the best of ``--repeat``.
+- ``policy``: ten simulated minutes of paper_baseline with a Python policy, the shipped
+  rollout-trained HDQN (``models/paper_baseline__async_rollout``), through ``simulate()``
+  on both engines (the fast one calls it back at each decision); CPU seconds, best of
+  ``--repeat``, and whether the KPIs are identical.
 - ``compile``: the first call in a fresh process with an empty numba cache (compiling),
   then in another fresh process with that cache (loading); wall seconds.
 - ``study``: paper_27 with the same workers on both engines, runs per wall second, and
@@ -74,6 +78,22 @@ def line_rule(sc: Scenario, rule: str, repeat: int) -> None:
     print(
         f"line  1 h paper_baseline {rule:3s} simulate simpy {a:8.4f} s  fast {b:8.4f} s"
         f"  ratio {a / b:6.1f}x"
+    )
+
+
+def policy_bench(repeat: int) -> None:
+    sc = load_scenario("paper_baseline", {"duration": 600.0})
+    spec = f"hdqn:{ROOT / 'models' / 'paper_baseline__async_rollout'}"
+    kpis = {}
+
+    def run(engine: str) -> None:
+        kpis[engine] = simulate(sc, make_policy(spec, 4), seed=1, engine=engine).kpis
+
+    run("fast")  # load the kernel and torch first
+    a, b = cpu(lambda: run("simpy"), repeat), cpu(lambda: run("fast"), repeat)
+    print(
+        f"policy 600 s paper_baseline HDQN simulate simpy {a:8.4f} s  fast {b:8.4f} s"
+        f"  ratio {a / b:6.1f}x  KPIs identical: {repr(kpis['simpy']) == repr(kpis['fast'])}"
     )
 
 
@@ -169,7 +189,7 @@ def cli_bench() -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--only", default="line,compile,study,cli")
+    ap.add_argument("--only", default="line,policy,compile,study,cli")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--full-study", action="store_true", help="paper_27 as shipped (long)")
@@ -177,6 +197,8 @@ def main() -> None:
     only = set(args.only.split(","))
     if "line" in only:
         line_bench(args.repeat)
+    if "policy" in only:
+        policy_bench(args.repeat)
     if "compile" in only:
         compile_bench()
     if "study" in only:
