@@ -28,6 +28,8 @@ SIRO_ROOM, SIRO_MARGIN = 2048, 256
 draws about one per deciding robot)."""
 EXP_ROOM, EXP_MARGIN = 64, 16
 """Pre-drawn breakdown exponentials per robot; a step draws at most a few per robot."""
+PARTS_SLACK, PARTS_PAD = 1.25, 256
+"""Room for parts per line: this much more than the stream at hand (grown when needed)."""
 
 
 class StreamsExhausted(RuntimeError):
@@ -71,12 +73,12 @@ class LineBatch:
         self.ef[V.SPEED] = b.speed
         self.ei = np.array([max_steps], dtype=np.int64)
         self.n_chunks = min(n, 4 * (os.cpu_count() or 1))
-        self._alloc(int(len(template.fed) * 1.25) + 256)
+        self._alloc(int(len(template.fed) * PARTS_SLACK) + PARTS_PAD)
         self._policy_rngs: list[np.random.Generator | None] = [None] * n
         self._failure_rngs: list[list[np.random.Generator]] = [[] for _ in range(n)]
 
     def _alloc(self, parts: int) -> None:
-        n, r, c = self.n, self.n_robots, self.n_chunks
+        n, r = self.n, self.n_robots
         self.parts = parts
         self.ip = np.repeat(self.ip0[None], n, axis=0)
         self.fs = np.zeros((n, r, L.N_FS))
@@ -134,7 +136,7 @@ class LineBatch:
         fed, y, _ = feeder.stream(sc.duration)
         m = len(fed)
         if m > self.parts:
-            self._grow(int(m * 1.25) + 256)
+            self._grow(max(m, int(m * PARTS_SLACK) + PARTS_PAD))
         self.fed[e, :m] = fed
         self.fed[e, m:] = math.inf
         self.ys[e, :m] = y

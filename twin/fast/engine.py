@@ -185,6 +185,8 @@ class FastLine:
 
     def run(self) -> None:
         """Feed for ``duration`` seconds, then drain (as Line.run), growing buffers if needed."""
+        if self.gi[L.HOLD]:
+            raise ValueError("run: a line in hold mode is driven by advance() and release()")
         rooms = list(self._rooms())
         while True:
             self.start(*rooms)
