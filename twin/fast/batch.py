@@ -140,6 +140,8 @@ class LineBatch:
         self.fed[e, :m] = fed
         self.fed[e, m:] = math.inf
         self.ys[e, :m] = y
+        self.gs[e, L.SIROIDX] = 0  # the new streams are unused: no top-up before the start
+        self.ist[e, :, L.EXPIDX] = 0
         if self.siro:
             self._policy_rngs[e] = streams[2]
             self.siro_draws[e] = streams[2].integers(0, 2**32, size=SIRO_ROOM, dtype=np.uint32)

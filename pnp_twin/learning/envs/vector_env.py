@@ -53,7 +53,9 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     ``observation``), plus ``num_envs`` and ``copy`` (return copies of the observation
     buffer, as ``SyncVectorEnv(copy=True)``; False returns the buffer the next step
     overwrites). No rendering. ``gymnasium.make_vec("pnp_twin/PickPlace-v0", num_envs=N,
-    vectorization_mode="vector_entry_point")`` builds it with the spec's 5000-step cap.
+    vectorization_mode="vector_entry_point")`` builds it with the spec's 5000-step cap
+    (applied as ``PickPlaceEnv(max_episode_steps=5000)`` applies it: an episode that
+    terminates on the cap's step is not also truncated, as Gymnasium's TimeLimit marks it).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
