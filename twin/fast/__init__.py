@@ -14,7 +14,11 @@ Modules: :mod:`~twin.fast.mathlib` (CPython's float operations, bit for bit),
 :mod:`~twin.fast.layout` (state array columns), :mod:`~twin.fast.kernel` (the event loop),
 :mod:`~twin.fast.engine` (:class:`FastLine`: a run as arrays; ``start``/``advance``/``fork``
 copy a run at any instant; ``kpi_records`` hands its arrays to :mod:`twin.kpis`),
-:mod:`~twin.fast.run` (the RunResult).
+:mod:`~twin.fast.belt_view` (the belt as attached policies read it),
+:mod:`~twin.fast.run` (the RunResult), :mod:`~twin.fast.rollouts` (every choice x sampled
+future continued from a forked decision in one compiled call: rollout labelling),
+:mod:`~twin.fast.batch` and :mod:`~twin.fast.vector` (many lines in hold mode stepped in one
+compiled call on numba's threads: the vector environment).
 """
 
 from __future__ import annotations
