@@ -2,7 +2,7 @@
 
 ``twin.run.simulate(..., engine="fast" | "auto")`` runs here. Importing this package is
 light; numba is imported (and the kernel loaded from its on-disk cache, or compiled on first
-use, about 15 s of CPU) only when a fast run starts. It runs rule policies and per-robot rule
+use, about 14 s of CPU) only when a fast run starts. It runs rule policies and per-robot rule
 mixes (every rule, SIRO included: numpy's ``Generator.integers`` is replayed on the policy
 stream's pre-drawn raw outputs) under every termination scheme, with bins and box changes,
 breakdowns, acceleration limits and trace replay. Policies that are Python objects (the
@@ -59,7 +59,7 @@ def simulate_fast(
 def prepare() -> None:
     """Compile the kernel now (or load it from the on-disk cache). A study calls this once
     before it starts worker processes, so that they load the kernel instead of each
-    compiling it (about 15 s of CPU, once per installation)."""
+    compiling it (about 14 s of CPU, once per installation)."""
     from twin.fast.engine import FastLine
     from twin.scenario import Scenario
 
