@@ -61,6 +61,7 @@ class Gateway:
         self.waiting: dict[int, simpy.Event] = {}  # robot index -> its release event
         self.expected: set[int] = set()  # t_any: robots the open epoch waits for
         self.pending: list[int] = []  # robots of the epoch the driver must answer
+        self.held: dict[int, simpy.Event] = {}  # hold mode: their release events
         self.epochs = 0
 
     @property
@@ -135,18 +136,21 @@ class Gateway:
             self._open(robots)
 
     def _open(self, robots: list[int]) -> None:
+        """The epoch opens: its robots no longer wait for one (in hold mode they are held
+        until :meth:`release`, as if released now: a robot free at the same instant does
+        not reopen it)."""
         self.epochs += 1
         if self.hold:
+            for i in robots:
+                self.held[i] = self.waiting.pop(i)
             self.pending.extend(robots)
             return
-        self._succeed(robots)
+        for i in robots:  # in robot order, so upstream robots claim first
+            self.waiting.pop(i).succeed()
 
     def release(self) -> list[int]:
         """Resume the robots of the pending epoch (hold mode); returns them."""
         robots, self.pending = sorted(self.pending), []
-        self._succeed(robots)
-        return robots
-
-    def _succeed(self, robots: list[int]) -> None:
         for i in robots:  # in robot order, so upstream robots claim first
-            self.waiting.pop(i).succeed()
+            self.held.pop(i).succeed()
+        return robots

@@ -184,7 +184,8 @@ def _label_forking(scenario: Scenario, seed: int, s: LabelSettings) -> Labels:
 
     behaviour = _Behaviour(s, np.random.default_rng([seed, 1]))
     line = FastLine(scenario, behaviour, seed=seed, duration=s.episode_time)
-    line.start(*line._rooms())
+    _, siro_room, exp_room = line._rooms()
+    line.start(0, siro_room, exp_room)  # no span buffer: labels read no spans
     camera = BeltCamera(scenario, s.channels)
     camera.attach(line.belt)
     behaviour.camera = camera
@@ -211,8 +212,8 @@ def _label_forking(scenario: Scenario, seed: int, s: LabelSettings) -> Labels:
         else:
             total = {p: float(c) for p, c in zip(picks, counts, strict=True)}
         rows.append(_row(rec, total, s))
-    if status != L.ST_OK:  # a pre-drawn stream of the episode ran out: replay it all
-        return _label_replaying(scenario, seed, s)
+    if status != L.ST_OK:  # not expected: the line grows its streams as it goes
+        raise RuntimeError(f"rollout labels: the episode stopped with status {status}")
     return _labels(rows, camera.shape, len(s.rules))
 
 

@@ -36,7 +36,7 @@ ENGINES = ("simpy", "fast", "auto")
 
 
 class EngineError(UserError):
-    """An unknown engine, or the fast engine asked for what it cannot run; one line."""
+    """An unknown engine; one line."""
 
 
 def pick_engine(engine: str, policy: Policy) -> str:

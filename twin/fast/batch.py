@@ -152,9 +152,13 @@ class LineBatch:
                     self.exps[e, r] = rng.standard_exponential(EXP_ROOM)
 
     def top_up(self) -> None:
-        """Refill the pre-drawn streams of the lines with fewer than a margin left."""
+        """Refill the pre-drawn streams of the lines with fewer than a margin left: the
+        kernel stops (ST_ROOM) before an event with less than its own margin left, and a
+        step draws at most one SIRO number per robot and two exponentials per robot."""
+        siro_margin = max(SIRO_MARGIN, L.SIRO_MARGIN + self.n_robots)
+        exp_margin = max(EXP_MARGIN, L.EXP_MARGIN + 2)
         if self.siro:
-            for e in np.flatnonzero(self.gs[:, L.SIROIDX] > SIRO_ROOM - SIRO_MARGIN).tolist():
+            for e in np.flatnonzero(self.gs[:, L.SIROIDX] > SIRO_ROOM - siro_margin).tolist():
                 k = int(self.gs[e, L.SIROIDX])
                 row = self.siro_draws[e]
                 row[: SIRO_ROOM - k] = row[k:]
@@ -163,7 +167,7 @@ class LineBatch:
                 row[SIRO_ROOM - k :] = rng.integers(0, 2**32, size=k, dtype=np.uint32)
                 self.gs[e, L.SIROIDX] = 0
         if self.breaks:
-            low = self.ist[:, :, L.EXPIDX] > EXP_ROOM - EXP_MARGIN
+            low = self.ist[:, :, L.EXPIDX] > EXP_ROOM - exp_margin
             for e, r in zip(*np.nonzero(low), strict=True):
                 k = int(self.ist[e, r, L.EXPIDX])
                 row = self.exps[e, r]

@@ -91,14 +91,18 @@ def _robot_params(scenario: Scenario, specs: list[RobotSpec]) -> tuple[np.ndarra
 
 
 STATE = (
-    "fs", "ist", "gs", "gf", "holder", "left_at", "rec_i", "rec_f", "sp_i", "sp_f", "counts",
-    "_c_i", "_c_f",
+    "ip", "fs", "ist", "gs", "gf", "holder", "left_at", "rec_i", "rec_f", "sp_i", "sp_f",
+    "counts", "_c_i", "_c_f",
 )  # fmt: skip
-"""The arrays a run changes as it goes (the rest is parameters and pre-drawn streams)."""
+"""The arrays a run changes as it goes (``ip``'s rule codes in hold mode; the rest is
+parameters and pre-drawn streams, which only grow by new arrays)."""
 
 
 class FastLine:
-    """One run of one scenario with a rule mix, as arrays; :meth:`run` fills the records."""
+    """One run of one scenario with any policy, as arrays; :meth:`run` fills the records."""
+
+    sp_i: np.ndarray  # the span buffer (set by start, grown by _grow)
+    sp_f: np.ndarray
 
     def __init__(
         self,
@@ -140,12 +144,14 @@ class FastLine:
                 self.external = policy
                 codes = [L.EXTERNAL] * n
         else:
-            names = list(rules or ["FIFO"])
-            codes = [
-                L.RULE_NAMES.index(r.upper()) for r in (names * n if len(names) == 1 else names)
-            ]
-            if len(codes) != n:
-                raise Unsupported(f"engine fast: {len(codes)} rules given for {n} robots")
+            names = [r.upper() for r in rules or ["FIFO"]]
+            bad = [r for r in names if r not in L.RULE_NAMES[:-1]]
+            if bad or len(names) not in (1, n):
+                raise Unsupported(
+                    f"rules: {','.join(names)} is not one rule or one per robot ({n}) of "
+                    f"{', '.join(L.RULE_NAMES[:-1])}"
+                )
+            codes = [L.RULE_NAMES.index(r) for r in (names * n if len(names) == 1 else names)]
         self.policy = policy
         self.policy_rng = streams[2]
         self.failure_rngs = streams[3:]
@@ -168,38 +174,51 @@ class FastLine:
         self.breaks = bool(self.ip[:, L.FAILMODE].any())
 
     # -- streams ---------------------------------------------------------------------------
-    def _streams(self, siro_room: int, exp_room: int) -> tuple[np.ndarray, np.ndarray]:
-        """Pre-drawn draws from fresh copies of the policy and failure streams."""
-        siro = np.zeros(0, dtype=np.int64)
-        if self.uses_siro:
-            rng = copy.deepcopy(self.policy_rng)
-            siro = rng.integers(0, 2**32, size=siro_room, dtype=np.uint32).astype(np.int64)
-        n = len(self.specs)
-        exps = np.zeros((n, exp_room if self.breaks else 0))
-        if self.breaks:
-            for r in range(n):
-                if self.ip[r, L.FAILMODE] == L.EXPONENTIAL:
-                    rng = copy.deepcopy(self.failure_rngs[r])
-                    exps[r] = rng.standard_exponential(exp_room)
-        return siro, exps
+    def _streams(self, siro_room: int, exp_room: int) -> None:
+        """Pre-drawn draws from fresh copies of the policy and failure streams (the copies
+        are kept: :meth:`_grow` draws on from them)."""
+        self._siro_rng = copy.deepcopy(self.policy_rng)
+        self._exp_rngs = [copy.deepcopy(rng) for rng in self.failure_rngs]
+        self._siro = self._draw_siro(siro_room if self.uses_siro else 0)
+        self._exps = self._draw_exps(exp_room if self.breaks else 0)
+
+    def _draw_siro(self, k: int) -> np.ndarray:
+        return self._siro_rng.integers(0, 2**32, size=k, dtype=np.uint32).astype(np.int64)
+
+    def _draw_exps(self, k: int) -> np.ndarray:
+        exps = np.zeros((len(self.specs), k))
+        for r, rng in enumerate(self._exp_rngs):
+            if self.ip[r, L.FAILMODE] == L.EXPONENTIAL:
+                exps[r] = rng.standard_exponential(k)
+        return exps
+
+    def _grow(self) -> None:
+        """ST_ROOM: double what the kernel is short of. Streams go on drawing from their
+        generators, so the result never depends on the first guess of the room."""
+        what = int(self.gs[L.ROOMFOR])
+        if what == L.ROOM_SPANS:
+            self.sp_i = np.concatenate([self.sp_i, np.zeros_like(self.sp_i)])
+            self.sp_f = np.concatenate([self.sp_f, np.zeros_like(self.sp_f)])
+        elif what == L.ROOM_SIRO:
+            self._siro = np.concatenate([self._siro, self._draw_siro(max(len(self._siro), 64))])
+        else:
+            more = self._draw_exps(max(self._exps.shape[1], 64))
+            self._exps = np.concatenate([self._exps, more], axis=1)
+        self.gs[L.STATUS] = L.ST_OK
 
     def run(self) -> None:
-        """Feed for ``duration`` seconds, then drain (as Line.run), growing buffers if needed."""
+        """Feed for ``duration`` seconds, then drain (as Line.run)."""
         if self.gi[L.HOLD]:
             raise ValueError("run: a line in hold mode is driven by advance() and release()")
-        rooms = list(self._rooms())
-        while True:
-            self.start(*rooms)
+        self.start(*self._rooms())
+        status = self.advance(self.end_at)
+        while status == L.ST_CHOOSE:
+            self.answer()
             status = self.advance(self.end_at)
-            while status == L.ST_CHOOSE:
-                self.answer()
-                status = self.advance(self.end_at)
-            if status == L.ST_OK:
-                status = self.finish()
-            if status == L.ST_OK:
-                return
-            grow = {L.ST_SPANS: 0, L.ST_SIRO: 1, L.ST_EXPS: 2}[status]
-            rooms[grow] *= 2
+        if status == L.ST_OK:
+            status = self.finish()
+        if status != L.ST_OK:  # the margins the kernel keeps make this unreachable
+            raise RuntimeError(f"engine fast: an event ran out of room (status {status})")
 
     def _rooms(self) -> tuple[int, int, int]:
         """First guesses of the span buffer and the pre-drawn SIRO and failure streams."""
@@ -214,7 +233,7 @@ class FastLine:
         """The state at t = 0: robots at their bases, processes about to start."""
         n_parts = len(self.fed)
         n = len(self.specs)
-        self._siro, self._exps = self._streams(siro_room, exp_room)
+        self._streams(siro_room, exp_room)
         self.fs = np.zeros((n, L.N_FS))
         self.ist = np.zeros((n, L.N_IS), dtype=np.int64)
         self.gs = np.zeros(L.N_GS, dtype=np.int64)
@@ -238,14 +257,19 @@ class FastLine:
                 attach(self.belt)
 
     def advance(self, until: float) -> int:
-        """Process every event before ``until``; the status (0, or a buffer that ran out)."""
-        status = run_events(
-            self.fp, self.ip, self.gp, self.gi, self.fs, self.ist, self.gs, self.gf,
-            self.fed, self.y, self.holder, self.left_at, self.rec_i, self.rec_f,
-            self.sp_i, self.sp_f, self.counts, self._siro, self._exps, self._c_i,
-            self._c_f, min(until, self.end_at),
-        )  # fmt: skip
-        return int(status)
+        """Process every event before ``until`` (growing buffers and streams as needed); the
+        status: 0 (reached ``until``), ST_CHOOSE (an external policy's decision: call
+        :meth:`answer`) or ST_EPOCH (hold mode: call :meth:`release`)."""
+        while True:
+            status = run_events(
+                self.fp, self.ip, self.gp, self.gi, self.fs, self.ist, self.gs, self.gf,
+                self.fed, self.y, self.holder, self.left_at, self.rec_i, self.rec_f,
+                self.sp_i, self.sp_f, self.counts, self._siro, self._exps, self._c_i,
+                self._c_f, min(until, self.end_at),
+            )  # fmt: skip
+            if status != L.ST_ROOM:
+                return int(status)
+            self._grow()
 
     def answer(self) -> None:
         """Ask the external policy about the decision the kernel stopped at (ST_CHOOSE)."""
@@ -296,15 +320,24 @@ class FastLine:
 
     def finish(self) -> int:
         """End the run at ``end_at`` (after :meth:`advance` to it): open spans are closed."""
+        n_spans, room = int(self.gs[L.NSPANS]), len(self.sp_i)
+        if room and n_spans + len(self.specs) > room:  # one more span per robot at most
+            self.gs[L.ROOMFOR] = L.ROOM_SPANS
+            self._grow()
         status = close_open_spans(self.ist, self.fs, self.gs, self.sp_i, self.sp_f, self.end_at)
         self.gf[L.NOW] = self.end_at
         return int(status)
 
     def fork(self) -> FastLine:
-        """An independent copy of the run as it stands (its state arrays copied)."""
+        """An independent copy of the run as it stands: its state arrays, counts and the
+        generators its streams grow from are copied. An external policy is not: answering
+        a fork's decision asks the same policy object."""
         other = copy.copy(self)
         for name in STATE:
             setattr(other, name, getattr(self, name).copy())
+        other.extra_rules, other.extra_counts = list(self.extra_rules), Counter(self.extra_counts)
+        other._siro_rng = copy.deepcopy(self._siro_rng)
+        other._exp_rngs = copy.deepcopy(self._exp_rngs)
         return other
 
     # -- records ---------------------------------------------------------------------------

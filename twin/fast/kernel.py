@@ -38,8 +38,10 @@ from twin.fast.layout import (
     DOWN0,
     DROBOT,
     EPOCHS,
+    EXP_MARGIN,
     EXPECTED,
     EXPIDX,
+    EXPONENTIAL,
     EXTERNAL,
     FAILMODE,
     FIFO,
@@ -74,6 +76,10 @@ from twin.fast.layout import (
     PICK,
     PLACE,
     QUAD,
+    ROOM_EXPS,
+    ROOM_SIRO,
+    ROOM_SPANS,
+    ROOMFOR,
     RULE,
     RULENOW,
     S_BLOCKED,
@@ -85,10 +91,13 @@ from twin.fast.layout import (
     SD,
     SEQ,
     SIRO,
+    SIRO_MARGIN,
     SIROIDX,
+    SPAN_MARGIN,
     ST_CHOOSE,
     ST_EPOCH,
     ST_EXPS,
+    ST_ROOM,
     ST_SIRO,
     ST_SPANS,
     STATUS,
@@ -323,12 +332,11 @@ def _open(fs, ist, gi, gs, col, now):
     gs[EPOCHS] += 1
     for i in range(ist.shape[0]):  # in robot order, so upstream robots claim first
         if ist[i, col]:
+            ist[i, WAITING] = 0
             if gi[HOLD]:
-                if not ist[i, PENDING]:
-                    ist[i, PENDING] = 1
-                    gs[NPENDING] += 1
+                ist[i, PENDING] = 1
+                gs[NPENDING] += 1
             else:
-                ist[i, WAITING] = 0
                 _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
 
 
@@ -338,7 +346,6 @@ def release(fs, ist, gs, now):
     for i in range(ist.shape[0]):
         if ist[i, PENDING]:
             ist[i, PENDING] = 0
-            ist[i, WAITING] = 0
             _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
     gs[NPENDING] = 0
     if gs[STATUS] == ST_EPOCH:
@@ -425,12 +432,33 @@ def _free(fs, ist, gi, gs, r, now):
 
 
 # -- the robot -----------------------------------------------------------------------------
+@compiled(inline=True)
+def _short_of_room(ip, ist, gs, sp_i, siro, exps, r):
+    """Before robot r's event: would a buffer or pre-drawn stream it may use run out? Then
+    stop with ST_ROOM (the state untouched), so the caller can grow it and carry on."""
+    room = -1
+    if sp_i.shape[0] > 0 and gs[NSPANS] + SPAN_MARGIN > sp_i.shape[0]:
+        room = ROOM_SPANS
+    elif ip[r, RULE] == SIRO and gs[SIROIDX] + SIRO_MARGIN > siro.shape[0]:
+        room = ROOM_SIRO
+    elif ip[r, FAILMODE] == EXPONENTIAL and ist[r, EXPIDX] + EXP_MARGIN > exps.shape[1]:
+        room = ROOM_EXPS
+    if room < 0:
+        return False
+    gs[STATUS] = ST_ROOM
+    gs[ROOMFOR] = room
+    gs[DROBOT] = r
+    return True
+
+
 @compiled()
 def run_events(
     fp, ip, gp, gi, fs, ist, gs, gf, fed, ys, holder, left_at,
     rec_i, rec_f, sp_i, sp_f, counts, siro, exps, c_i, c_f, stop_at,
 ):  # fmt: skip
-    """Process events with time < stop_at; returns the status (0 = ok)."""
+    """Process events with time < stop_at; returns the status: 0 (reached stop_at),
+    ST_CHOOSE, ST_EPOCH, ST_ROOM (call again once grown) or, should an event still run out
+    of room, ST_SPANS / ST_SIRO / ST_EXPS."""
     n_rob = ist.shape[0]
     v = gp[V]
     scheme = gi[SCHEME]
@@ -457,6 +485,8 @@ def run_events(
             break
         if r < 0 or fs[r, WAKE] >= stop_at:
             break
+        if _short_of_room(ip, ist, gs, sp_i, siro, exps, r):
+            break  # ST_ROOM: the caller grows the buffer or stream and calls again
         now = fs[r, WAKE]
         gf[NOW] = now
         ist[r, ACTIVE] = 0

@@ -41,7 +41,8 @@ N_IS = 19
 # line int state gs[.]
 SEQ, EPOCHS, SIROIDX, NSPANS, STATUS = range(5)
 DROBOT, DN, NPENDING = range(5, 8)  # ST_CHOOSE: the robot, its candidates; hold: epoch size
-N_GS = 8
+ROOMFOR = 8  # ST_ROOM: ROOM_SPANS, ROOM_SIRO or ROOM_EXPS (and the robot in DROBOT)
+N_GS = 9
 NOW = 0  # gf[NOW]
 # program counters: where a robot resumes when its wake-up is processed
 PC_START, PC_NOOP, PC_HELD, PC_APPROACH, PC_PLACE, PC_INTERRUPT, PC_DOWN = range(7)
@@ -54,3 +55,6 @@ SPAN_NAMES = ("wait", "interrupted", "noop", "blocked", "down")
 ST_OK, ST_SPANS, ST_SIRO, ST_EXPS = range(4)
 ST_CHOOSE = 4  # a robot with rule EXTERNAL has candidates: call choose_external
 ST_EPOCH = 5  # hold mode: a decision epoch is pending: call release
+ST_ROOM = 6  # before an event: a buffer or pre-drawn stream is nearly full; grow it, go on
+ROOM_SPANS, ROOM_SIRO, ROOM_EXPS = range(3)  # gs[ROOMFOR] with ST_ROOM: which one
+SPAN_MARGIN, SIRO_MARGIN, EXP_MARGIN = 4, 4, 2  # room kept free (an event needs less)

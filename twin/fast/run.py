@@ -24,7 +24,7 @@ def simulate_fast(
     seed: int | None = None,
     policy_name: str | None = None,
 ) -> RunResult:
-    """Run ``scenario`` with a rule mix on the compiled engine and measure it."""
+    """Run ``scenario`` with ``policy`` on the compiled engine and measure it."""
     t0 = time.perf_counter()
     line = FastLine(scenario, policy, seed=seed)
     line.run()
