@@ -6,8 +6,9 @@ constants (computed here in Python with the twin's own expressions, so they are 
 doubles). Random draws the SimPy run makes during the run are pre-drawn: SIRO's
 ``Generator.integers`` as the policy stream's raw ``next_uint32`` outputs (the kernel
 replays numpy's Lemire rejection), breakdowns as standard exponentials (``exponential(m)``
-is ``m * standard_exponential()``). If a stream or the span buffer runs out, the run starts
-again with twice the room, so the result never depends on the first guess.
+is ``m * standard_exponential()``). Before an event that could run out of a stream or of
+the span buffer, the kernel stops (ST_ROOM) and the line grows it in place (streams draw on
+from their generators) and carries on, so the result never depends on the first guess.
 
 A policy that is a Python object (the learned HDQN, any ``choose``) runs through a callback:
 its robots carry the rule code EXTERNAL, the kernel stops at each of their decisions
@@ -112,13 +113,11 @@ class FastLine:
         duration: float | None = None,
         rules: Sequence[str] | None = None,
         hold: bool = False,
-        parts: tuple[np.ndarray, np.ndarray, list[str] | None] | None = None,
     ) -> None:
         """``policy`` is any policy: a rule mix (policies.base.RuleMix) is compiled, reset
         here as Line resets it; any other is called back at its decisions (reset and attached
         at each :meth:`start`). Or give ``rules`` (one name, or one per robot) and no policy.
-        ``hold`` pauses at every decision epoch (see :meth:`release`); ``parts`` replaces
-        the feeder's stream, as ``Line(parts=)``."""
+        ``hold`` pauses at every decision epoch (see :meth:`release`)."""
         self.scenario = scenario
         self.seed = scenario.seed if seed is None else seed
         self.duration = scenario.duration if duration is None else duration
@@ -127,7 +126,7 @@ class FastLine:
         streams = [np.random.default_rng(s) for s in children]
         b = scenario.belt
         feeder = Feeder(scenario.feeder, b.width, streams[0], streams[1], scenario.source_dir)
-        self.fed, self.y, self.kind = feeder.stream(self.duration) if parts is None else parts
+        self.fed, self.y, self.kind = feeder.stream(self.duration)
         self.fed = np.ascontiguousarray(self.fed, dtype=np.float64)
         self.y = np.ascontiguousarray(self.y, dtype=np.float64)
         self.specs = robot_specs(scenario)
