@@ -30,8 +30,9 @@ from pnp_twin.learning.envs import ENV_ID, PickPlaceAEC, PickPlaceEnv
 Rates = tuple[float, float, int]  # steps per wall second, per CPU second, episodes ended
 
 
-def bench_gym(env: gym.Env, steps: int, seed: int = 0) -> Rates:
-    """Steps per second of ``env`` under uniformly random actions; episodes reset as needed."""
+def bench_gym(env: gym.Env, steps: int, seed: int = 0, render: bool = False) -> Rates:
+    """Steps per second of ``env`` under uniformly random actions; episodes reset as needed.
+    With ``render``, ``env.render()`` after every step."""
     n = int(env.action_space.n)  # type: ignore[attr-defined]
     actions = np.random.default_rng(seed).integers(n, size=steps).tolist()
     env.reset(seed=seed)
@@ -39,6 +40,8 @@ def bench_gym(env: gym.Env, steps: int, seed: int = 0) -> Rates:
     t0, c0 = time.perf_counter(), time.process_time()
     for a in actions:
         _obs, _r, term, trunc, _info = env.step(a)
+        if render:
+            env.render()
         if term or trunc:
             episodes += 1
             env.reset()
@@ -60,23 +63,6 @@ def bench_aec(env: PickPlaceAEC, steps: int, seed: int = 0) -> Rates:
             env.reset()
             continue
         env.step(a)
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    return steps / wall, steps / cpu, episodes
-
-
-def bench_render(env: gym.Env, steps: int, seed: int = 0) -> Rates:
-    """Steps per second with ``env.render()`` after every step."""
-    n = int(env.action_space.n)  # type: ignore[attr-defined]
-    actions = np.random.default_rng(seed).integers(n, size=steps).tolist()
-    env.reset(seed=seed)
-    episodes = 0
-    t0, c0 = time.perf_counter(), time.process_time()
-    for a in actions:
-        _obs, _r, term, trunc, _info = env.step(a)
-        env.render()
-        if term or trunc:
-            episodes += 1
-            env.reset()
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     return steps / wall, steps / cpu, episodes
 
@@ -116,7 +102,7 @@ def main() -> None:
         )
     frames = max(1, args.steps // 10)
     for mode in ("rgb_array", "ansi"):
-        wall, cpu, _ = bench_render(PickPlaceEnv(render_mode=mode, **kw), frames)
+        wall, cpu, _ = bench_gym(PickPlaceEnv(render_mode=mode, **kw), frames, render=True)
         name = f"gym + render {mode}"
         print(f"{name:30s} {wall:9,.0f} steps/s wall {cpu:9,.0f} steps/CPU-s ({frames} steps)")
     for after in (100, 1000, 4000):

@@ -55,9 +55,8 @@ def is_rule_mix(policy: Policy) -> bool:
 
 
 def rule_codes(policy: Policy, n_robots: int) -> list[int] | None:
-    """Per-robot rule codes when ``policy`` is a plain rule mix (policies.base.RuleMix)."""
-    if not is_rule_mix(policy):
-        return None
+    """Per-robot rule codes of a plain rule mix (after its reset), None if it names other
+    rules or another robot count."""
     rules = list(getattr(policy, "rules", []))
     if len(rules) != n_robots or any(r not in L.RULE_NAMES[:-1] for r in rules):
         return None
@@ -135,10 +134,10 @@ class FastLine:
         self.extra_rules: list[str] = []  # rule names of external choices beyond RULE_NAMES
         self.extra_counts: Counter[tuple[int, str]] = Counter()
         if policy is not None:
-            mix = is_rule_mix(policy)
-            if mix:
+            codes = None
+            if is_rule_mix(policy):
                 policy.reset(self.specs, streams[2])  # as Line resets it (a mix of one widens)
-            codes = rule_codes(policy, n) if mix else None
+                codes = rule_codes(policy, n)
             if codes is None:
                 self.external = policy
                 codes = [L.EXTERNAL] * n
