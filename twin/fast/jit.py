@@ -11,6 +11,7 @@ writable, the user's cache folder); folders of other fingerprints there are remo
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import shutil
@@ -41,6 +42,7 @@ def _writable(folder: Path) -> bool:
     return os.access(folder, os.W_OK)
 
 
+@functools.cache
 def _cache_dir() -> str:
     """This fingerprint's cache folder (created), the other fingerprints' removed."""
     given = os.environ.get("NUMBA_CACHE_DIR")
@@ -59,18 +61,13 @@ def _cache_dir() -> str:
     return str(here)
 
 
-_CACHE: list[str] = []
-
-
 def _cached(**options: Any) -> Callable[[Any], Any]:
     """``njit(cache=True, **options)`` with the cache in the fingerprint's folder (numba
     reads ``config.CACHE_DIR`` when a function is decorated)."""
 
     def decorate(fn: Any) -> Any:
-        if not _CACHE:
-            _CACHE.append(_cache_dir())
         before = getattr(config, "CACHE_DIR", "")
-        setattr(config, "CACHE_DIR", _CACHE[0])  # noqa: B010 (numba's config is untyped)
+        setattr(config, "CACHE_DIR", _cache_dir())  # noqa: B010 (numba's config is untyped)
         try:
             return njit(cache=True, **options)(fn)
         finally:
