@@ -70,12 +70,13 @@ def _continue_all(
             _copy(fs0, fs, fs.shape[0], 0.0)
             _copy(ist0, ist, ist.shape[0], 0)
             _copy(counts0, counts, counts.shape[0], 0)
-            _copy(c_f0, c_f, gs0[L.DN], 0.0)  # the decision's candidates
             for i in range(gs.shape[0]):
                 gs[i] = gs0[i]
             gf[0] = gf0[0]
-            for i in range(gs0[L.DN]):
+            for i in range(gs0[L.DN]):  # the decision's candidates (the rest is scratch)
                 c_i[i] = c_i0[i]
+                for c in range(3):
+                    c_f[i, c] = c_f0[i, c]
             for i in range(holder.shape[0]):
                 holder[i] = holder0[i] if i < n_kept else -1
                 left_at[i] = left_at0[i] if i < n_kept else math.inf
