@@ -34,12 +34,12 @@ from pathlib import Path
 
 import pandas as pd
 
+from pnp_twin.policies import make_policy
 from pnp_twin.studies import Options, build_plan, run_sweep
-from policies import make_policy
-from twin import load_scenario, simulate
-from twin.fast.engine import FastLine
-from twin.line import Line
-from twin.scenario import Scenario
+from pnp_twin.twin import load_scenario, simulate
+from pnp_twin.twin.fast.engine import FastLine
+from pnp_twin.twin.line import Line
+from pnp_twin.twin.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLES = ("results.csv", "summary.csv", "paired.csv", "best.csv")
@@ -114,7 +114,8 @@ def policy_bench(repeat: int) -> None:
 def compile_bench() -> None:
     code = (
         "import time; t=time.perf_counter(); c=time.process_time();"
-        "from twin import load_scenario, simulate; from policies import make_policy;"
+        "from pnp_twin.twin import load_scenario, simulate;"
+        "from pnp_twin.policies import make_policy;"
         "sc=load_scenario('two_robot', {'duration': 5.0, 'warmup': 1.0});"
         "simulate(sc, make_policy('SPT', 2), engine='fast');"
         "print(time.perf_counter()-t, time.process_time()-c)"

@@ -20,7 +20,7 @@ import pandas as pd
 
 from pnp_twin.studies import Options, build_plan, run_sweep
 from pnp_twin.studies.plan import StudyPlan
-from twin import load_scenario
+from pnp_twin.twin import load_scenario
 
 
 def subset(plan: StudyPlan, points: int) -> StudyPlan:

@@ -57,7 +57,7 @@ def rollout_rates(episodes: int, scenario: str) -> tuple[dict[str, float], int, 
     import numpy as np
 
     from pnp_twin.learning.rollout import LabelSettings, label_episode
-    from twin.loader import load_scenario
+    from pnp_twin.twin.loader import load_scenario
 
     line = load_scenario(scenario, {"termination": "t_continue", "warmup": 0.0})
     label_episode(line, 1, LabelSettings(futures=1), engine="fast")  # load the compiled code

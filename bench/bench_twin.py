@@ -22,18 +22,18 @@ from pathlib import Path
 
 import simpy
 
-from policies import make_policy
-from twin import load_scenario
-from twin.line import Line
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import load_scenario
+from pnp_twin.twin.line import Line
 
 ROOT = Path(__file__).resolve().parents[1]
 
 # One timed run, in whatever tree is first on PYTHONPATH (the same code for both sides).
 TIMED_RUN = """
 import json, sys, time
-from policies import make_policy
-from twin import load_scenario
-from twin.line import Line
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import load_scenario
+from pnp_twin.twin.line import Line
 scenario, policy, hours, seed = sys.argv[1], sys.argv[2], float(sys.argv[3]), int(sys.argv[4])
 s = load_scenario(scenario, {"duration": 3600.0 * hours})
 line = Line(s, make_policy(policy), seed=seed)

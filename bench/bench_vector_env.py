@@ -25,7 +25,7 @@ import numpy as np
 
 from pnp_twin.learning.envs import MAX_EPISODE_STEPS, PickPlaceEnv
 from pnp_twin.learning.envs.vector_env import PickPlaceVectorEnv
-from twin.fast import layout as L
+from pnp_twin.twin.fast import layout as L
 
 Rates = tuple[float, float]  # env steps per wall second, per CPU second
 

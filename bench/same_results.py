@@ -49,7 +49,14 @@ SCENARIOS = [
 CHECKPOINTS = ["async", "async_rollout", "single", "sync"]
 # run metadata, not results: timings, dates, versions, and which engine ran (issue 12)
 VOLATILE = (
-    "wall_time", "wall_s", "elapsed", "started_at", "finished_at", "created", "versions", "engine",
+    "wall_time",
+    "wall_s",
+    "elapsed",
+    "started_at",
+    "finished_at",
+    "created",
+    "versions",
+    "engine",
 )
 
 # The learning interface, run in each tree (module paths moved with the layers).
@@ -59,9 +66,9 @@ try:
     from pnp_twin.learning.envs.driver import EpochDriver
     from pnp_twin.learning.rollout import LabelSettings, label_episode
 except ImportError:
-    from twin.envs.driver import EpochDriver
-    from policies.hdqn.rollout import LabelSettings, label_episode
-from twin import load_scenario
+    from pnp_twin.twin.envs.driver import EpochDriver
+    from pnp_twin.policies.hdqn.rollout import LabelSettings, label_episode
+from pnp_twin.twin import load_scenario
 h = hashlib.sha256()
 for term in ("t_continue", "t_all", "t_any"):
     d = EpochDriver("paper_baseline", channels=3, termination=term,

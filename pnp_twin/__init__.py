@@ -1,14 +1,41 @@
-"""pnp-twin's upper floors: studies, learning and the command line, over the core.
+"""pnp-twin: a digital twin of multi-robot conveyor pick-and-place lines, one import package.
 
-- :mod:`twin`: the simulation core (scenario, feeder, belt, robots, bins, gateway, KPIs);
-  it imports nothing of ours.
-- :mod:`policies`: answering a decision (rules, mixes, the learned HDQN); imports ``twin``.
-- :mod:`pnp_twin.studies`: sweeps, sizing and rule-mix search; imports the two above.
+The repository's folders install under this one name:
+
+- :mod:`pnp_twin.twin`: the simulation core (scenario, feeder, belt, robots, bins, gateway,
+  KPIs, the compiled engine); it imports nothing of ours.
+- :mod:`pnp_twin.policies`: answering a decision (rules, mixes, the learned HDQN's inference).
+- :mod:`pnp_twin.studies`: sweeps, sizing, rule-mix search and calibration.
 - :mod:`pnp_twin.learning`: the Gymnasium / PettingZoo envs and HDQN training.
-- :mod:`reports`: study and training folders to HTML; reads files, never simulates.
+- :mod:`pnp_twin.reports`: study and training folders to HTML; reads files, never simulates.
 - :mod:`pnp_twin.cli`: the ``pnp-twin`` command line on top; nothing imports it.
+- ``pnp_twin.scenarios`` and ``pnp_twin.models``: shipped scenario files and trained models.
+
+The core's entry points are re-exported here: ``from pnp_twin import load_scenario, simulate``.
 """
 
-from twin import __version__
+from pnp_twin.twin import (
+    Decision,
+    Policy,
+    RobotSpec,
+    RunResult,
+    Scenario,
+    ScenarioError,
+    __version__,
+    load_scenario,
+    simulate,
+    with_overrides,
+)
 
-__all__ = ["__version__"]
+__all__ = [
+    "Decision",
+    "Policy",
+    "RobotSpec",
+    "RunResult",
+    "Scenario",
+    "ScenarioError",
+    "__version__",
+    "load_scenario",
+    "simulate",
+    "with_overrides",
+]

@@ -25,7 +25,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from functools import partial
 from typing import Any
 
-from twin.errors import UserError
+from pnp_twin.twin.errors import UserError
 
 log = logging.getLogger(__name__)
 

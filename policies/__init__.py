@@ -1,8 +1,8 @@
 """Dispatching policies: the classic rules, rule mixes and the learned HDQN."""
 
-from policies.base import RuleChoosingPolicy, RuleMix, SettableRules
-from policies.registry import PolicyError, make_policy
-from policies.rules import PAPER_RULES, RULES
+from pnp_twin.policies.base import RuleChoosingPolicy, RuleMix, SettableRules
+from pnp_twin.policies.registry import PolicyError, make_policy
+from pnp_twin.policies.rules import PAPER_RULES, RULES
 
 __all__ = [
     "PAPER_RULES",

@@ -6,8 +6,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from policies.rules import RULES
-from twin.decision import Decision, RobotSpec
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.decision import Decision, RobotSpec
 
 
 class RuleChoosingPolicy:
@@ -59,6 +59,14 @@ class RuleMix(RuleChoosingPolicy):
     def select_rule(self, decision: Decision) -> str:
         return self.rules[decision.robot]
 
+    def fixed_rules(self) -> list[str] | None:
+        """The rule per robot (after ``reset``), for engines that apply rules themselves
+        (:func:`~pnp_twin.twin.decision.fixed_rules`); None for a subclass that chooses
+        otherwise."""
+        cls = type(self)
+        plain = cls.select_rule is RuleMix.select_rule and cls.choose is RuleMix.choose
+        return list(self.rules) if plain else None
+
 
 class SettableRules(RuleMix):
     """A rule per robot that a driver (an RL environment) sets before each decision."""
@@ -69,3 +77,6 @@ class SettableRules(RuleMix):
 
     def set(self, robot: int, rule: str) -> None:
         self.rules[robot] = rule
+
+    def fixed_rules(self) -> list[str] | None:
+        return None  # the rules change between decisions

@@ -5,18 +5,18 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable, Sequence
 
-from policies.base import RuleMix
-from policies.rules import RULES
-from twin.decision import Policy
-from twin.errors import UserError
+from pnp_twin.policies.base import RuleMix
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.decision import Policy
+from pnp_twin.twin.errors import UserError
 
 Factory = Callable[[str], Policy]
 
 # Extra policy kinds by prefix, e.g. "hdqn:DIR": "module:function" entries, imported only
 # when a spec names them (the learned policy needs torch, the ``learn`` extra).
 PREFIXED: dict[str, str] = {
-    "hdqn": "policies.hdqn.policy:from_spec",
-    "sb3": "policies.sb3_policy:from_spec",
+    "hdqn": "pnp_twin.policies.hdqn.policy:from_spec",
+    "sb3": "pnp_twin.policies.sb3_policy:from_spec",
 }
 
 

@@ -9,8 +9,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from twin.decision import Decision
-from twin.geometry import move_time
+from pnp_twin.twin.decision import Decision
+from pnp_twin.twin.geometry import move_time
 
 Rule = Callable[[Decision, np.random.Generator], int]
 

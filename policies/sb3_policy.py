@@ -21,13 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from policies.base import RuleChoosingPolicy
-from policies.registry import PolicyError, rule_names
-from policies.rules import RULES
-from twin.belt import Belt
-from twin.camera import BeltCamera
-from twin.decision import Decision, RobotSpec
-from twin.scenario import Scenario
+from pnp_twin.policies.base import RuleChoosingPolicy
+from pnp_twin.policies.registry import PolicyError, rule_names
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.belt import Belt
+from pnp_twin.twin.camera import BeltCamera
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.scenario import Scenario
 
 ALGORITHMS = ("PPO", "DQN", "A2C")
 

@@ -11,13 +11,13 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from reports.html import render
-from reports.layout import build_page
-from reports.load import ReportError, Study, load_study
-from reports.record_figures import Animation
-from reports.training import build_training_page
-from reports.training_load import is_training_folder, load_runs
-from twin.output import write_text
+from pnp_twin.reports.html import render
+from pnp_twin.reports.layout import build_page
+from pnp_twin.reports.load import ReportError, Study, load_study
+from pnp_twin.reports.record_figures import Animation
+from pnp_twin.reports.training import build_training_page
+from pnp_twin.reports.training_load import is_training_folder, load_runs
+from pnp_twin.twin.output import write_text
 
 log = logging.getLogger(__name__)
 

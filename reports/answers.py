@@ -8,8 +8,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from reports.load import Study
-from reports.text import (
+from pnp_twin.reports.load import Study
+from pnp_twin.reports.text import (
     at_point,
     fmt_pct,
     fmt_value,

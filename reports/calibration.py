@@ -20,10 +20,10 @@ from typing import Any
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from reports.html import Page, Section, esc, render, table_html
-from reports.load import ReportError
-from reports.style import PALETTE, rgba, style
-from twin.output import write_text
+from pnp_twin.reports.html import Page, Section, esc, render, table_html
+from pnp_twin.reports.load import ReportError
+from pnp_twin.reports.style import PALETTE, rgba, style
+from pnp_twin.twin.output import write_text
 
 log = logging.getLogger(__name__)
 

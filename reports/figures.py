@@ -17,14 +17,14 @@ import pandas as pd
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from reports.style import (
+from pnp_twin.reports.style import (
     PALETTE,
     cap_percent,
     policy_colors,
     rgba,
     style,
 )
-from reports.text import (
+from pnp_twin.reports.text import (
     at_point,
     fmt_pct,
     fmt_value,

@@ -10,12 +10,12 @@ from typing import Any
 
 import pandas as pd
 
-from reports import figures, record_figures, style, welch
-from reports.answers import headline, precision_text
-from reports.html import Page, Section, esc, table_html
-from reports.load import Study
-from reports.mix_ranking import mix_section
-from reports.text import (
+from pnp_twin.reports import figures, record_figures, style, welch
+from pnp_twin.reports.answers import headline, precision_text
+from pnp_twin.reports.html import Page, Section, esc, table_html
+from pnp_twin.reports.load import Study
+from pnp_twin.reports.mix_ranking import mix_section
+from pnp_twin.reports.text import (
     at_point,
     fmt_pct,
     fmt_pm,

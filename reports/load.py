@@ -15,7 +15,7 @@ from typing import Any
 
 import pandas as pd
 
-from twin.errors import UserError
+from pnp_twin.twin.errors import UserError
 
 log = logging.getLogger(__name__)
 

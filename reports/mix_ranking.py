@@ -6,10 +6,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from reports import figures
-from reports.html import Section, esc, table_html
-from reports.load import Study
-from reports.text import fmt_pct, fmt_pm
+from pnp_twin.reports import figures
+from pnp_twin.reports.html import Section, esc, table_html
+from pnp_twin.reports.load import Study
+from pnp_twin.reports.text import fmt_pct, fmt_pm
 
 
 def mix_table(study: Study) -> str:

@@ -14,7 +14,7 @@ import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 from pydantic import ValidationError
 
-from reports.style import (
+from pnp_twin.reports.style import (
     PALETTE,
     PART_COLORS,
     STATE_COLORS,
@@ -22,12 +22,12 @@ from reports.style import (
     rgba,
     style,
 )
-from reports.text import (
+from pnp_twin.reports.text import (
     at_point,
     point_label,
 )
-from twin.geometry import bin_position
-from twin.scenario import Scenario
+from pnp_twin.twin.geometry import bin_position
+from pnp_twin.twin.scenario import Scenario
 
 
 def robot_count(results: pd.DataFrame) -> int:

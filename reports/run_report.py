@@ -13,10 +13,10 @@ from typing import Any
 
 import pandas as pd
 
-from reports import record_figures, welch
-from reports.html import Page, Section, esc, render, table_html
-from reports.text import fmt_pct, fmt_seconds
-from twin.output import write_text
+from pnp_twin.reports import record_figures, welch
+from pnp_twin.reports.html import Page, Section, esc, render, table_html
+from pnp_twin.reports.text import fmt_pct, fmt_seconds
+from pnp_twin.twin.output import write_text
 
 TIMELINE_SECONDS = 20.0
 

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from reports.load import Study
+from pnp_twin.reports.load import Study
 
 # dotted scenario path -> (label, short label, unit)
 PARAMS: dict[str, tuple[str, str, str]] = {

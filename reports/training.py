@@ -10,11 +10,11 @@ import math
 
 import pandas as pd
 
-from reports.html import Page, Section, esc, table_html
-from reports.text import fmt_pct, fmt_seconds
-from reports.training_figures import ci_text, learning_figure, modes_figure, rules_figure
-from reports.training_load import TrainingRun
-from twin.stats import t_interval
+from pnp_twin.reports.html import Page, Section, esc, table_html
+from pnp_twin.reports.text import fmt_pct, fmt_seconds
+from pnp_twin.reports.training_figures import ci_text, learning_figure, modes_figure, rules_figure
+from pnp_twin.reports.training_load import TrainingRun
+from pnp_twin.twin.stats import t_interval
 
 MODE_TEXT = {
     "single": "one agent, joint action over all robots",

@@ -12,9 +12,9 @@ import pandas as pd
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from reports.html import esc
-from reports.style import PALETTE, cap_percent, rgba, style
-from reports.training_load import TrainingRun
+from pnp_twin.reports.html import esc
+from pnp_twin.reports.style import PALETTE, cap_percent, rgba, style
+from pnp_twin.reports.training_load import TrainingRun
 
 RULE_ORDER = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT")
 HDQN_COLOR, RULE_COLOR = PALETTE[0], "#8d99ae"

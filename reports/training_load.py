@@ -15,7 +15,7 @@ from typing import Any
 
 import pandas as pd
 
-from reports.load import ReportError, read_json, read_table
+from pnp_twin.reports.load import ReportError, read_json, read_table
 
 log = logging.getLogger(__name__)
 

@@ -21,8 +21,8 @@ import numpy as np
 import pandas as pd
 import plotly.graph_objects as go
 
-from reports.style import PALETTE, cap_percent, rgba, style
-from twin.stats import t_interval
+from pnp_twin.reports.style import PALETTE, cap_percent, rgba, style
+from pnp_twin.twin.stats import t_interval
 
 COLUMN = "welch_gripping_rate"
 DRIFT_POINTS = 0.5  # a change smaller than this is not worth a warning

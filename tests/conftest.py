@@ -28,13 +28,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import twin.run
-from twin.decision import Decision, Policy, RobotSpec
-from twin.geometry import move_time
-from twin.line import Line
-from twin.loader import apply_overrides, validate
-from twin.run import RunResult
-from twin.scenario import Scenario
+import pnp_twin.twin.run as twin_run
+from pnp_twin.twin.decision import Decision, Policy, RobotSpec
+from pnp_twin.twin.geometry import move_time
+from pnp_twin.twin.line import Line
+from pnp_twin.twin.loader import apply_overrides, validate
+from pnp_twin.twin.run import RunResult
+from pnp_twin.twin.scenario import Scenario
 
 EPS = 1e-9
 SAME_INSTANT_LIMIT = 20_000  # events at one simulated instant before a run is a livelock
@@ -102,12 +102,12 @@ class GuardedLine(Line):
 
 def run_guarded(scenario: Scenario, policy: Policy, seed: int | None = None) -> RunResult:
     """:func:`twin.simulate`, run on a :class:`GuardedLine`."""
-    original = twin.run.Line
-    twin.run.Line = GuardedLine  # type: ignore[misc]
+    original = twin_run.Line
+    twin_run.Line = GuardedLine  # type: ignore[misc]
     try:
-        return twin.run.simulate(scenario, policy, seed=seed)
+        return twin_run.simulate(scenario, policy, seed=seed)
     finally:
-        twin.run.Line = original  # type: ignore[misc]
+        twin_run.Line = original  # type: ignore[misc]
 
 
 @dataclass(frozen=True)

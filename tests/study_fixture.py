@@ -17,7 +17,7 @@ from typing import Any
 from pnp_twin.studies import Options, build_plan, run_sweep
 from pnp_twin.studies.rulemix import run_mix
 from pnp_twin.studies.sizing import run_size
-from twin import load_scenario
+from pnp_twin.twin import load_scenario
 
 BASELINE = Path(__file__).resolve().parents[1] / "scenarios" / "paper_baseline.toml"
 

@@ -1,15 +1,19 @@
 """Imports run one way (the import-linter contracts in pyproject.toml), and the checker can
-fail: a planted upward import in a copy of the tree breaks the contract."""
+fail: a planted upward import in a copy of the tree breaks the contract. Everything is
+imported under the one package ``pnp_twin``: no source names a top-level ``twin``,
+``policies``, ``reports``, ``scenarios`` or ``models``."""
 
 from __future__ import annotations
 
+import ast
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("twin", "policies", "reports", "pnp_twin")
+FOLDERS = ("twin", "policies", "reports", "scenarios", "models")  # linked into pnp_twin/
+PACKAGES = (*FOLDERS, "pnp_twin")
 
 
 def lint_imports(root: Path) -> subprocess.CompletedProcess[str]:
@@ -24,8 +28,9 @@ def lint_imports(root: Path) -> subprocess.CompletedProcess[str]:
 
 
 def copy_tree(dest: Path) -> Path:
-    for name in PACKAGES:
-        shutil.copytree(ROOT / name, dest / name, ignore=shutil.ignore_patterns("__pycache__"))
+    for name in PACKAGES:  # pnp_twin's links to the folders are copied as links
+        ignore = shutil.ignore_patterns("__pycache__")
+        shutil.copytree(ROOT / name, dest / name, symlinks=True, ignore=ignore)
     shutil.copy(ROOT / "pyproject.toml", dest / "pyproject.toml")
     return dest
 
@@ -39,10 +44,10 @@ def test_the_repository_keeps_its_layers() -> None:
 def test_a_core_module_importing_a_policy_breaks_the_contract(tmp_path: Path) -> None:
     tree = copy_tree(tmp_path)
     belt = tree / "twin" / "belt.py"
-    belt.write_text(belt.read_text() + "\nimport policies.rules  # noqa\n")
+    belt.write_text(belt.read_text() + "\nimport pnp_twin.policies.rules  # noqa\n")
     out = lint_imports(tree)
     assert out.returncode != 0
-    assert "twin.belt -> policies.rules" in out.stdout
+    assert "pnp_twin.twin.belt -> pnp_twin.policies.rules" in out.stdout
 
 
 def test_a_policy_importing_the_cli_breaks_the_contract(tmp_path: Path) -> None:
@@ -51,16 +56,45 @@ def test_a_policy_importing_the_cli_breaks_the_contract(tmp_path: Path) -> None:
     rules.write_text(rules.read_text() + "\nimport pnp_twin.cli.app  # noqa\n")
     out = lint_imports(tree)
     assert out.returncode != 0
-    assert "policies.rules -> pnp_twin.cli.app" in out.stdout
+    assert "pnp_twin.policies.rules -> pnp_twin.cli.app" in out.stdout
 
 
 def test_importing_the_core_loads_nothing_above_it() -> None:
     code = (
-        "import sys, twin, twin.line, twin.camera, twin.run, twin.kpis, twin.stats\n"
-        "up = ('policies', 'reports', 'pnp_twin', 'torch', 'gymnasium', 'plotly', 'scipy')\n"
-        "print(sorted(m for m in sys.modules if m.split('.')[0] in up))\n"
+        "import sys, pnp_twin.twin.line, pnp_twin.twin.camera, pnp_twin.twin.run\n"
+        "import pnp_twin.twin.kpis, pnp_twin.twin.stats\n"
+        "up = ('torch', 'gymnasium', 'plotly', 'scipy')\n"
+        "ours = ('policies', 'reports', 'studies', 'learning', 'cli', 'parallel')\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in up\n"
+        "             or m.startswith('pnp_twin.') and m.split('.')[1] in ours))\n"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
     )
     assert out.stdout.strip() == "[]", out.stdout
+
+
+def _top_level_imports(path: Path) -> list[str]:
+    names = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.append(node.module)
+    return [n for n in names if n.split(".")[0] in FOLDERS]
+
+
+def test_nothing_imports_a_folder_by_its_top_level_name() -> None:
+    """``import twin`` would load a second copy of the core beside ``pnp_twin.twin`` (and a
+    user's own ``twin/`` or ``reports.py`` in place of ours)."""
+    roots = [ROOT / n for n in (*PACKAGES, "tests", "bench", "examples")]
+    files = [f for r in roots for f in r.rglob("*.py") if "__pycache__" not in f.parts]
+    assert len(files) > 100
+    found = {str(f.relative_to(ROOT)): bad for f in files if (bad := _top_level_imports(f))}
+    assert found == {}
+
+
+def test_the_folders_are_linked_into_the_one_package() -> None:
+    for name in FOLDERS:
+        link = ROOT / "pnp_twin" / name
+        assert link.is_symlink() and link.resolve() == (ROOT / name).resolve(), name

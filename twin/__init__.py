@@ -3,10 +3,10 @@
 The simulation core (this package, minus the command line) never imports a policy.
 """
 
-from twin.decision import Decision, Policy, RobotSpec
-from twin.loader import ScenarioError, load_scenario, with_overrides
-from twin.run import RunResult, simulate
-from twin.scenario import Scenario
+from pnp_twin.twin.decision import Decision, Policy, RobotSpec
+from pnp_twin.twin.loader import ScenarioError, load_scenario, with_overrides
+from pnp_twin.twin.run import RunResult, simulate
+from pnp_twin.twin.scenario import Scenario
 
 __version__ = "0.1.0"
 

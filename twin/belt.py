@@ -10,10 +10,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import simpy
 
-from twin.geometry import exit_time
+from pnp_twin.twin.geometry import exit_time
 
 if TYPE_CHECKING:
-    from twin.records import Recorder
+    from pnp_twin.twin.records import Recorder
 
 FREE = -1
 SWEEP = 5.0  # s between two sweeps of the belt's end by :meth:`Belt.conveying`

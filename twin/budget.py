@@ -19,8 +19,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from twin.errors import UserError
-from twin.scenario import Scenario
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.scenario import Scenario
 
 MAX_PARTS = 2_000_000  # parts in one run: about 1.6 GB and half a minute
 MAX_RUNS = 100_000  # runs in one study
@@ -70,7 +70,7 @@ def expected_parts(scenario: Scenario, trace_rows: int | None = None) -> float:
     """Parts a run of ``scenario`` feeds: rate x duration, or the trace's rows."""
     if scenario.feeder.arrival == "trace":
         if trace_rows is None:
-            from twin.trace import check_replay  # the trace's rows (read once more)
+            from pnp_twin.twin.trace import check_replay  # the trace's rows (read once more)
 
             trace = check_replay(scenario)
             trace_rows = 0 if trace is None else len(trace.times)

@@ -26,8 +26,8 @@ from collections.abc import Collection
 
 import numpy as np
 
-from twin.belt import Belt
-from twin.scenario import Scenario
+from pnp_twin.twin.belt import Belt
+from pnp_twin.twin.scenario import Scenario
 
 CHANNELS = ("parts", "claimed", "busy")
 

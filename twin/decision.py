@@ -70,8 +70,9 @@ class Decision:
 @runtime_checkable
 class Policy(Protocol):
     """Anything with ``reset`` and ``choose`` can drive the line (optionally ``last_rule``:
-    the name of the rule behind the last choice; and ``attach(belt)``, called once the
-    line's belt is loaded, for policies that look at the belt)."""
+    the name of the rule behind the last choice; ``attach(belt)``, called once the
+    line's belt is loaded, for policies that look at the belt; and ``fixed_rules()``, see
+    :func:`fixed_rules`)."""
 
     def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
         """Called once before a run with the robots and the run's policy stream."""
@@ -79,3 +80,17 @@ class Policy(Protocol):
     def choose(self, decision: Decision) -> int:
         """Index into ``decision.parts`` of the part to pick (there is at least one)."""
         ...
+
+
+def fixed_rules(policy: object) -> list[str] | None:
+    """The built-in rule of each robot, when the policy (after its ``reset``) always picks as
+    those rules do, so an engine may apply them itself instead of asking; else None.
+
+    A policy opts in with a ``fixed_rules()`` method returning the names (a rule mix); the
+    core recognises no class by name.
+    """
+    method = getattr(policy, "fixed_rules", None)
+    if method is None:
+        return None
+    names = method()
+    return None if names is None else [str(n) for n in names]

@@ -17,11 +17,11 @@ import numpy as np
 import simpy
 from simpy.events import URGENT
 
-from twin.scenario import FeederConfig, Scenario
-from twin.trace import TraceError, read_trace, resolve  # noqa: F401  (TraceError kept importable)
+from pnp_twin.twin.scenario import FeederConfig, Scenario
+from pnp_twin.twin.trace import TraceError, read_trace, resolve  # noqa: F401  (TraceError kept importable)
 
 if TYPE_CHECKING:
-    from twin.belt import Belt
+    from pnp_twin.twin.belt import Belt
 
 log = logging.getLogger(__name__)
 

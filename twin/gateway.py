@@ -22,8 +22,8 @@ from typing import Protocol
 
 import simpy
 
-from twin.decision import Decision, Policy
-from twin.records import Recorder
+from pnp_twin.twin.decision import Decision, Policy
+from pnp_twin.twin.records import Recorder
 
 SCHEMES = ("t_continue", "t_all", "t_any")
 

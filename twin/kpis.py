@@ -36,13 +36,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from twin.decision import RobotSpec
-from twin.geometry import move_time
+from pnp_twin.twin.decision import RobotSpec
+from pnp_twin.twin.geometry import move_time
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from twin.records import Recorder
+    from pnp_twin.twin.records import Recorder
 
 STATES = ("busy", "noop", "wait", "blocked", "down")
 SPAN_STATES = ("wait", "interrupted", "noop", "blocked", "down")

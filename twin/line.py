@@ -12,15 +12,15 @@ import logging
 import numpy as np
 import simpy
 
-from twin.belt import Belt
-from twin.bin import Bin
-from twin.decision import Policy, RobotSpec
-from twin.feeder import Feeder, PartStream
-from twin.gateway import Gateway
-from twin.geometry import bin_position
-from twin.records import Recorder
-from twin.robot import Failures, Robot
-from twin.scenario import Scenario
+from pnp_twin.twin.belt import Belt
+from pnp_twin.twin.bin import Bin
+from pnp_twin.twin.decision import Policy, RobotSpec
+from pnp_twin.twin.feeder import Feeder, PartStream
+from pnp_twin.twin.gateway import Gateway
+from pnp_twin.twin.geometry import bin_position
+from pnp_twin.twin.records import Recorder
+from pnp_twin.twin.robot import Failures, Robot
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 

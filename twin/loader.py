@@ -23,9 +23,9 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
-from twin.errors import ScenarioError, clip, excerpt, read_user_text
-from twin.scenario import Scenario
-from twin.trace import check_replay
+from pnp_twin.twin.errors import ScenarioError, clip, excerpt, read_user_text
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.trace import check_replay
 
 __all__ = [
     "ScenarioError",
@@ -70,7 +70,7 @@ def safe_no_alias_loader() -> type:
 
 def shipped_scenarios() -> list[str]:
     """Names of the scenarios shipped with the package (usable without a path)."""
-    root = resources.files("scenarios")
+    root = resources.files("pnp_twin.scenarios")
     return sorted(Path(p.name).stem for p in root.iterdir() if p.name.endswith(SUFFIXES))
 
 
@@ -80,7 +80,7 @@ def find_scenario(name_or_path: str | Path) -> Path:
     if path.is_file():
         return path
     if path.suffix == "" and path.parent == Path("."):
-        root = resources.files("scenarios")
+        root = resources.files("pnp_twin.scenarios")
         for suffix in SUFFIXES:
             candidate = root / f"{path.name}{suffix}"
             if candidate.is_file():

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import tomli_w
 
-from twin.errors import UserError
+from pnp_twin.twin.errors import UserError
 
 if TYPE_CHECKING:
     import pandas as pd

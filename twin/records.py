@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from twin.belt import Belt
-from twin.geometry import exit_time
+from pnp_twin.twin.belt import Belt
+from pnp_twin.twin.geometry import exit_time
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -10,14 +10,20 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import simpy
 
-from twin.belt import FREE, Belt
-from twin.bin import Bin
-from twin.decision import Decision, RobotSpec
-from twin.geometry import intercept_now, intercept_quad, intercept_time, move_time, position_along
-from twin.records import Recorder
+from pnp_twin.twin.belt import FREE, Belt
+from pnp_twin.twin.bin import Bin
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.geometry import (
+    intercept_now,
+    intercept_quad,
+    intercept_time,
+    move_time,
+    position_along,
+)
+from pnp_twin.twin.records import Recorder
 
 if TYPE_CHECKING:
-    from twin.gateway import Gateway
+    from pnp_twin.twin.gateway import Gateway
 
 
 @dataclass(frozen=True)

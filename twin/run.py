@@ -7,10 +7,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from twin.decision import Policy
-from twin.kpis import compute_kpis, recorder_records
-from twin.line import Line
-from twin.scenario import Scenario
+from pnp_twin.twin.decision import Policy
+from pnp_twin.twin.kpis import compute_kpis, recorder_records
+from pnp_twin.twin.line import Line
+from pnp_twin.twin.scenario import Scenario
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -94,7 +94,7 @@ def simulate(
     any policy) or "auto" (fast); ``meta["engine"]`` says which ran.
     """
     if engine != "simpy":
-        from twin.fast import pick_engine, simulate_fast
+        from pnp_twin.twin.fast import pick_engine, simulate_fast
 
         if pick_engine(engine, policy) == "fast":
             return simulate_fast(scenario, policy, seed=seed, policy_name=policy_name)

@@ -30,7 +30,7 @@ from pydantic import (
     model_validator,
 )
 
-from twin.geometry import workspaces
+from pnp_twin.twin.geometry import workspaces
 
 
 def _integral(value: Any) -> Any:

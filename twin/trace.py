@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from twin.errors import ScenarioError, clip, read_user_text
-from twin.scenario import Scenario
+from pnp_twin.twin.errors import ScenarioError, clip, read_user_text
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 

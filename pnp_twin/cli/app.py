@@ -18,8 +18,8 @@ from typing import Annotated, Any, NoReturn
 import typer
 from typer.core import TyperGroup
 
-from twin import __version__
-from twin.errors import UserError
+from pnp_twin import __version__
+from pnp_twin.twin.errors import UserError
 
 USER_ERROR = 2
 INTERRUPTED = 130
@@ -172,7 +172,7 @@ def root(
     if verbose:
         handler = logging.StreamHandler(sys.stderr)
         handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
-        for name in ("twin", "policies", "pnp_twin", "reports"):
+        for name in ("pnp_twin",):
             logger = logging.getLogger(name)
             logger.setLevel(logging.DEBUG if verbose > 1 else logging.INFO)
             logger.handlers = [handler]

@@ -27,6 +27,7 @@ from rich.table import Table
 
 from pnp_twin.cli.app import ScenarioArg, SetOpt, app
 from pnp_twin.cli.run_cmd import Engine
+from pnp_twin.policies import RULES
 from pnp_twin.studies.calibrate import Problem, calibrate, check_problem
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.calibrate_fields import check_distinct, parse_fit
@@ -34,9 +35,8 @@ from pnp_twin.studies.calibrate_output import write_outputs
 from pnp_twin.studies.calibrate_targets import read_targets
 from pnp_twin.studies.lock import StudyLock
 from pnp_twin.studies.plan import StudyError
-from policies import RULES
-from twin.loader import load_scenario, parse_sets
-from twin.output import dumps_json
+from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.output import dumps_json
 
 
 def _check_out(out: Path) -> StudyLock:
@@ -129,7 +129,7 @@ def _fitted_table(info: dict[str, Any]) -> Table:
 
 def _write_report(out: Path, err: Console) -> None:
     try:
-        from reports.calibration import build_calibration_report
+        from pnp_twin.reports.calibration import build_calibration_report
     except ImportError as e:  # plotly missing: the tables are still there
         err.print(f"note: report not written ({e})")
         return

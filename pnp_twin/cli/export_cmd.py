@@ -14,7 +14,7 @@ import typer
 
 from pnp_twin.cli.app import app
 from pnp_twin.studies.export import export_xlsx
-from twin.errors import UserError
+from pnp_twin.twin.errors import UserError
 
 
 @app.command("export")

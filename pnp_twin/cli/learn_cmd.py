@@ -28,7 +28,7 @@ from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.cli.train_progress import TrainProgress
 from pnp_twin.learning.train_args import TrainArgs, field_help
 from pnp_twin.parallel import BACKENDS, pool_map_ordered, ray_map
-from twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.loader import load_scenario, parse_sets
 
 TD_RULES = "FIFO,LIFO,SIRO,SD,LD,SPT"
 
@@ -212,7 +212,7 @@ _OPTIONS = _EXTRA[:2] + _field_options() + _EXTRA[2:]
 def train_cmd(**kw: Any) -> None:
     """Train the HDQN meta-controller; writes OUT/<scenario>__<mode>__<seed>/."""
     _need_torch()
-    from policies.hdqn.network import PRESETS
+    from pnp_twin.policies.hdqn.network import PRESETS
 
     targets = kw["targets"]
     if targets not in ("td", "rollout"):
@@ -379,7 +379,7 @@ def evaluate_cmd(
     """Compare a trained policy with every rule and the best rule mix, paired by seed."""
     _need_torch()
     from pnp_twin.learning.evaluate import compare, write_evaluation
-    from policies.registry import make_policy
+    from pnp_twin.policies.registry import make_policy
 
     prefix, sep, target = policy.partition(":")
     if not sep or prefix.lower() not in ("hdqn", "sb3") or not target:

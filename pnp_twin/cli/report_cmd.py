@@ -13,7 +13,7 @@ from typing import Annotated
 import typer
 
 from pnp_twin.cli.app import app
-from twin.errors import UserError
+from pnp_twin.twin.errors import UserError
 
 
 @app.command("report")
@@ -52,7 +52,7 @@ def report(
     """Build the self-contained HTML report of a study or training folder (opens offline)."""
     if out is not None and out.is_dir():
         raise UserError(f"--out {out}: is a folder; give a file name such as {out}/report.html")
-    from reports import Animation, build_report  # the front end imports reports
+    from pnp_twin.reports import Animation, build_report  # the front end imports reports
 
     path = build_report(study_dir, out, Animation(animate_from, animate_seconds))
     typer.echo(f"report: {path}", err=True)

@@ -21,10 +21,10 @@ from rich.table import Table
 
 from pnp_twin.cli.app import ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note, stderr_console, stdout_console
-from policies import make_policy
-from twin.budget import check_run
-from twin.loader import ScenarioError, load_scenario, parse_sets, shipped_scenarios
-from twin.output import (
+from pnp_twin.policies import make_policy
+from pnp_twin.twin.budget import check_run
+from pnp_twin.twin.loader import ScenarioError, load_scenario, parse_sets, shipped_scenarios
+from pnp_twin.twin.output import (
     OutputError,
     check_table_path,
     check_writable,
@@ -34,9 +34,9 @@ from twin.output import (
     write_table,
     write_text,
 )
-from twin.run import RunResult, simulate
-from twin.scenario import Scenario
-from twin.trace import read_trace, trace_file
+from pnp_twin.twin.run import RunResult, simulate
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.trace import read_trace, trace_file
 
 
 class Engine(StrEnum):
@@ -143,7 +143,7 @@ def run(
         write_table(result.spans, spans, "--spans")
         note(f"wrote {len(result.spans)} robot state spans to {spans}")
     if report is not None:
-        from reports.run_report import build_run_report  # the front end imports reports
+        from pnp_twin.reports.run_report import build_run_report  # the front end imports reports
 
         scenario_dict = scn.model_dump(mode="json")
         build_run_report(result.kpis, result.parts, result.spans, scenario_dict, report)

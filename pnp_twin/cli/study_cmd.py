@@ -44,10 +44,10 @@ from pnp_twin.studies.folder import Tables
 from pnp_twin.studies.plan import AUTO
 from pnp_twin.studies.rulemix import DEFAULT_BUDGET, run_mix
 from pnp_twin.studies.sizing import COUNT, MTBF, run_size
-from twin.budget import check_study
-from twin.errors import UserError
-from twin.loader import ScenarioError, load_scenario, parse_sets, with_overrides
-from twin.scenario import Scenario
+from pnp_twin.twin.budget import check_study
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.loader import ScenarioError, load_scenario, parse_sets, with_overrides
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 
@@ -298,7 +298,7 @@ def _report(out: Path, skip: bool) -> None:
         return
     err = stderr_console()
     try:
-        from reports import build_report
+        from pnp_twin.reports import build_report
     except ImportError as e:
         err.print(f"note: report not written ({e})")
         return
@@ -486,7 +486,9 @@ def mix(
     for i, r in enumerate(result["ranked"][:10], start=1):
         t.add_row(str(i), r["mix"], _g(r["gripping_rate_mean"], r["ci_low"], r["ci_high"]))
     stdout_console().print(t)
-    from reports.answers import mix_headline  # the report's answer, best vs runner-up paired
+    from pnp_twin.reports.answers import (
+        mix_headline,  # the report's answer, best vs runner-up paired
+    )
 
     stdout_console().print(mix_headline(result))
     _report(out, no_report)

@@ -26,14 +26,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from policies.registry import make_policy
-from policies.rules import RULES
-from twin.decision import Policy
-from twin.loader import with_overrides
-from twin.output import write_table
-from twin.run import simulate
-from twin.scenario import Scenario
-from twin.stats import t_interval
+from pnp_twin.policies.registry import make_policy
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.decision import Policy
+from pnp_twin.twin.loader import with_overrides
+from pnp_twin.twin.output import write_table
+from pnp_twin.twin.run import simulate
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.stats import t_interval
 
 log = logging.getLogger(__name__)
 
@@ -173,7 +173,7 @@ def trained_policy(trained: str | Path) -> tuple[str, Callable[[], Policy]]:
     spec = str(trained)
     if spec.startswith("sb3:"):
         return str(getattr(make_policy(spec), "name", spec)), partial(make_policy, spec)
-    from policies.hdqn.policy import HDQNPolicy
+    from pnp_twin.policies.hdqn.policy import HDQNPolicy
 
     return f"HDQN ({HDQNPolicy.load(trained).mode})", partial(HDQNPolicy.load, trained)
 
@@ -212,7 +212,7 @@ def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) 
     ``rules.csv``: robot (from 1), rule, count of the HDQN on the first evaluation seed.
     Returns the paths written.
     """
-    from policies.hdqn.checkpoint import read_meta
+    from pnp_twin.policies.hdqn.checkpoint import read_meta
 
     mode = "sb3" if str(hdqn).startswith("sb3:") else read_meta(hdqn).get("mode", "")
     line = comparison.scenario

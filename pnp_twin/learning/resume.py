@@ -34,9 +34,9 @@ import torch
 from pnp_twin.learning.credit import TeamCredit
 from pnp_twin.learning.envs.driver import EpochDriver
 from pnp_twin.learning.replay import ReplayBuffer
-from policies.hdqn.agent import DQNAgent
-from policies.hdqn.checkpoint import CheckpointError, load_agent, save_checkpoint
-from twin.output import atomic_path, write_text
+from pnp_twin.policies.hdqn.agent import DQNAgent
+from pnp_twin.policies.hdqn.checkpoint import CheckpointError, load_agent, save_checkpoint
+from pnp_twin.twin.output import atomic_path, write_text
 
 log = logging.getLogger(__name__)
 

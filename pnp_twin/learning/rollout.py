@@ -31,12 +31,12 @@ from typing import Any
 import numpy as np
 
 from pnp_twin.learning.envs.driver import EnvError, check_rules
-from policies.rules import RULES
-from twin.camera import BeltCamera
-from twin.decision import Decision, RobotSpec
-from twin.feeder import Feeder, resampled, splice
-from twin.line import Line
-from twin.scenario import Scenario
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.camera import BeltCamera
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.feeder import Feeder, resampled, splice
+from pnp_twin.twin.line import Line
+from pnp_twin.twin.scenario import Scenario
 
 
 @dataclass(frozen=True)
@@ -178,9 +178,9 @@ def label_episode(
 
 
 def _label_forking(scenario: Scenario, seed: int, s: LabelSettings) -> Labels:
-    from twin.fast import layout as L
-    from twin.fast.engine import FastLine
-    from twin.fast.rollouts import continue_each
+    from pnp_twin.twin.fast import layout as L
+    from pnp_twin.twin.fast.engine import FastLine
+    from pnp_twin.twin.fast.rollouts import continue_each
 
     behaviour = _Behaviour(s, np.random.default_rng([seed, 1]))
     line = FastLine(scenario, behaviour, seed=seed, duration=s.episode_time)

@@ -43,12 +43,12 @@ from pnp_twin.learning.train import (
     validate,
 )
 from pnp_twin.parallel import pool_map_ordered
-from policies.hdqn.agent import AgentConfig, DQNAgent
-from policies.hdqn.checkpoint import META, save_checkpoint
-from policies.hdqn.policy import HDQNPolicy
-from twin.loader import load_scenario, with_overrides
-from twin.output import atomic_path
-from twin.scenario import Scenario
+from pnp_twin.policies.hdqn.agent import AgentConfig, DQNAgent
+from pnp_twin.policies.hdqn.checkpoint import META, save_checkpoint
+from pnp_twin.policies.hdqn.policy import HDQNPolicy
+from pnp_twin.twin.loader import load_scenario, with_overrides
+from pnp_twin.twin.output import atomic_path
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 

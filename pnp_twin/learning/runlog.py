@@ -7,7 +7,7 @@ import io
 from pathlib import Path
 from typing import Any
 
-from twin.output import write_text
+from pnp_twin.twin.output import write_text
 
 
 def truncate_log(path: Path, step: int) -> None:

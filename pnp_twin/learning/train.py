@@ -78,12 +78,18 @@ from pnp_twin.learning.validation import (
     validate,
     validation_seeds,
 )
-from policies.hdqn import TERMINATION
-from policies.hdqn.agent import AgentConfig, DQNAgent, decode_joint, linear_epsilon, robot_onehot
-from policies.hdqn.checkpoint import META, save_checkpoint
-from twin.errors import UserError
-from twin.loader import load_scenario, with_overrides
-from twin.scenario import Scenario
+from pnp_twin.policies.hdqn import TERMINATION
+from pnp_twin.policies.hdqn.agent import (
+    AgentConfig,
+    DQNAgent,
+    decode_joint,
+    linear_epsilon,
+    robot_onehot,
+)
+from pnp_twin.policies.hdqn.checkpoint import META, save_checkpoint
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.loader import load_scenario, with_overrides
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 
@@ -385,7 +391,7 @@ def _evaluate(
     folder: Path,
 ) -> dict[str, Any]:
     """Validate the greedy policy; keep its weights in ``best/`` when it is the best yet."""
-    from policies.hdqn.policy import HDQNPolicy
+    from pnp_twin.policies.hdqn.policy import HDQNPolicy
 
     run.agent.q.eval()
     scores = validate(HDQNPolicy(run.agent, meta), scenario, seeds, baselines, run.args.engine)

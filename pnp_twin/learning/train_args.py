@@ -17,8 +17,8 @@ from functools import cache
 from typing import Any
 
 from pnp_twin.learning.envs.driver import EnvError, check_rules
-from policies.hdqn import MODES
-from policies.rules import RULES
+from pnp_twin.policies.hdqn import MODES
+from pnp_twin.policies.rules import RULES
 
 VIEWS = ("window", "belt")
 """Multi-agent observations: the robot's workspace window, or the whole belt."""

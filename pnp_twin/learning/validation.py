@@ -10,13 +10,13 @@ from typing import Any
 
 import numpy as np
 
-from policies.hdqn import TERMINATION
-from policies.rules import RULES
-from twin.decision import Policy
-from twin.loader import with_overrides
-from twin.run import simulate
-from twin.scenario import Scenario
-from twin.stats import t_interval
+from pnp_twin.policies.hdqn import TERMINATION
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.decision import Policy
+from pnp_twin.twin.loader import with_overrides
+from pnp_twin.twin.run import simulate
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.stats import t_interval
 
 VALIDATION_SEED_BASE = 500_000
 """Validation seeds are 500,000 + i (training episodes use >= 1,000,000; evaluate 0..n-1)."""
@@ -52,7 +52,7 @@ def rule_baselines(
 
     ``engine``: :func:`twin.run.simulate`'s (same results on each); the engines that ran
     are added to ``ran`` when given."""
-    from policies.registry import make_policy
+    from pnp_twin.policies.registry import make_policy
 
     out: dict[str, list[float]] = {}
     for r in RULES:

@@ -26,14 +26,14 @@ from typing import Any
 
 import numpy as np
 
+from pnp_twin.policies import RULES, make_policy
 from pnp_twin.studies.calibrate_eval import Evaluator, PointPrediction
 from pnp_twin.studies.calibrate_fields import FieldRef, FitParam, apply_values, current_value
 from pnp_twin.studies.calibrate_targets import Targets
 from pnp_twin.studies.plan import StudyError
 from pnp_twin.studies.seeds import replication_seeds
-from policies import RULES, make_policy
-from twin.errors import UserError
-from twin.scenario import Scenario
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 

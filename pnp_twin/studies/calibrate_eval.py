@@ -28,9 +28,9 @@ import numpy as np
 from pnp_twin.parallel import pool_map
 from pnp_twin.studies.execute import execute
 from pnp_twin.studies.plan import RunSpec, StudyError
-from twin.output import write_text
-from twin.scenario import Scenario
-from twin.stats import t_interval
+from pnp_twin.twin.output import write_text
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.stats import t_interval
 
 log = logging.getLogger(__name__)
 
@@ -73,7 +73,6 @@ def _summarise(runs: dict[str, list[dict[str, float]]], kpis: Sequence[str]) -> 
     return PointPrediction(best, mean, low, high)
 
 
-
 def _read_journal(path: Path) -> dict[str, list[dict[str, float]]] | None:
     """A journalled point's runs; None when absent. A damaged file (a kill mid-write on a
     file system without atomic rename, an edit) is removed, so the point is simulated again."""
@@ -88,6 +87,7 @@ def _read_journal(path: Path) -> dict[str, list[dict[str, float]]] | None:
         log.warning("%s: damaged (%s); simulating the point again", path, e)
         path.unlink(missing_ok=True)
         return None
+
 
 class Evaluator:
     """Simulates points (policies x replications each), through the journal in ``folder``."""

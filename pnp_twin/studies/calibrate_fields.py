@@ -22,8 +22,8 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 
 from pnp_twin.studies.plan import RESERVED, StudyError
-from twin.loader import ScenarioError, validate
-from twin.scenario import Scenario
+from pnp_twin.twin.loader import ScenarioError, validate
+from pnp_twin.twin.scenario import Scenario
 
 
 @dataclass(frozen=True)

@@ -21,8 +21,8 @@ import pandas as pd
 
 from pnp_twin.studies.calibrate import Calibration, label, near_optimal
 from pnp_twin.studies.calibrate_fields import raw_with_values
-from twin.loader import apply_overrides, find_scenario, read_mapping
-from twin.output import dumps_toml, write_json, write_table, write_text
+from pnp_twin.twin.loader import apply_overrides, find_scenario, read_mapping
+from pnp_twin.twin.output import dumps_toml, write_json, write_table, write_text
 
 SCENARIO_FILE = "scenario.toml"
 SUMMARY_FILE = "calibration.json"

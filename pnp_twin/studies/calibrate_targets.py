@@ -28,7 +28,7 @@ import pandas as pd
 
 from pnp_twin.studies.calibrate_fields import FieldRef, resolve_path
 from pnp_twin.studies.plan import StudyError
-from twin.loader import parse_value
+from pnp_twin.twin.loader import parse_value
 
 WEIGHT = "weight"
 LINE_KPIS = (

@@ -9,10 +9,10 @@ from __future__ import annotations
 import json
 from typing import Any
 
+from pnp_twin.policies import make_policy
 from pnp_twin.studies.plan import RunSpec
-from policies import make_policy
-from twin.kpis import flat_kpis
-from twin.run import RunResult, simulate
+from pnp_twin.twin.kpis import flat_kpis
+from pnp_twin.twin.run import RunResult, simulate
 
 ID_COLUMNS = ("run_id", "point", "policy", "replication", "seed")
 DROPPED = ("policy", "seed")  # flat_kpis repeats these; the row already has them

@@ -19,8 +19,8 @@ import pandas as pd
 from pydantic import BaseModel
 
 from pnp_twin.studies.plan import StudyError
-from twin.output import atomic_path
-from twin.scenario import Scenario
+from pnp_twin.twin.output import atomic_path
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 

@@ -23,7 +23,7 @@ from pnp_twin.studies.summary import (
     showcase_point,
     summarise,
 )
-from twin.output import versions, write_json, write_table
+from pnp_twin.twin.output import versions, write_json, write_table
 
 PACKAGES = ("pnp-twin", "simpy", "numpy", "pandas", "plotly")  # what a result depends on
 

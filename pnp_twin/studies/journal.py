@@ -33,7 +33,7 @@ from typing import Any
 from pnp_twin.studies.execute import cell
 from pnp_twin.studies.lock import StudyLock
 from pnp_twin.studies.plan import RunSpec, StudyError
-from twin.output import dumps_json, remove_temporaries, write_json
+from pnp_twin.twin.output import dumps_json, remove_temporaries, write_json
 
 log = logging.getLogger(__name__)
 

@@ -19,7 +19,7 @@ from typing import Any
 from filelock import FileLock, Timeout
 
 from pnp_twin.studies.plan import StudyError
-from twin.output import write_json
+from pnp_twin.twin.output import write_json
 
 log = logging.getLogger(__name__)
 

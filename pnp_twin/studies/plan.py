@@ -19,12 +19,12 @@ from typing import Any
 
 from pydantic import BaseModel
 
+from pnp_twin.policies import make_policy
 from pnp_twin.studies.seeds import replication_seeds
-from policies import make_policy
-from twin.errors import UserError, excerpt
-from twin.loader import ScenarioError, with_overrides
-from twin.scenario import Scenario, SweepConfig, duplicate_policy
-from twin.trace import check_replay
+from pnp_twin.twin.errors import UserError, excerpt
+from pnp_twin.twin.loader import ScenarioError, with_overrides
+from pnp_twin.twin.scenario import Scenario, SweepConfig, duplicate_policy
+from pnp_twin.twin.trace import check_replay
 
 RESERVED = {
     "sweep": "the study itself cannot be swept",

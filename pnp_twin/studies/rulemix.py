@@ -30,15 +30,15 @@ from typing import Any
 
 import numpy as np
 
+from pnp_twin.policies import RULES
+from pnp_twin.policies.registry import rule_names
 from pnp_twin.studies.folder import Tables
 from pnp_twin.studies.plan import StudyError, StudyPlan, build_plan
 from pnp_twin.studies.runner import Options, Session, finish, open_session
 from pnp_twin.studies.seeds import search_rng
-from policies import RULES
-from policies.registry import rule_names
-from twin.output import write_json
-from twin.scenario import Scenario
-from twin.stats import t_interval
+from pnp_twin.twin.output import write_json
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.stats import t_interval
 
 log = logging.getLogger(__name__)
 

@@ -29,8 +29,8 @@ from pnp_twin.studies.folder import (
 )
 from pnp_twin.studies.journal import Journal
 from pnp_twin.studies.plan import RunSpec, StudyPlan
-from twin.output import write_json
-from twin.stats import t_interval
+from pnp_twin.twin.output import write_json
+from pnp_twin.twin.stats import t_interval
 
 log = logging.getLogger(__name__)
 
@@ -103,7 +103,7 @@ class Session:
         o = self.options
         todo = [replace(s, engine=o.engine) for s in todo]
         if todo and o.engine != "simpy" and o.workers > 1:
-            from twin.fast import prepare
+            from pnp_twin.twin.fast import prepare
 
             prepare()  # compile (or load) the fast kernel once, not in every worker
         run_specs(todo, on_row, o.backend, o.workers, o.address)

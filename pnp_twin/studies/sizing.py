@@ -34,9 +34,9 @@ import pandas as pd
 from pnp_twin.studies.folder import Tables, write_records
 from pnp_twin.studies.plan import RunSpec, StudyError, StudyPlan, build_plan
 from pnp_twin.studies.runner import Options, finish, open_session, run_plan
-from twin.loader import ScenarioError, with_overrides
-from twin.output import write_json
-from twin.scenario import Scenario
+from pnp_twin.twin.loader import ScenarioError, with_overrides
+from pnp_twin.twin.output import write_json
+from pnp_twin.twin.scenario import Scenario
 
 COUNT = "robots.count"
 MTBF = "robots.mtbf"

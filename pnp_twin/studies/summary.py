@@ -12,7 +12,7 @@ from typing import Any
 
 import pandas as pd
 
-from twin.stats import t_interval
+from pnp_twin.twin.stats import t_interval
 
 KPIS = ("gripping_rate", "throughput", "efficiency", "utilisation")
 # G in %, efficiency and utilisation as fractions (the CSV convention, docs/study_format.md)

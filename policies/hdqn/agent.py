@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from policies.hdqn.network import QNetwork, build_network
+from pnp_twin.policies.hdqn.network import QNetwork, build_network
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ import json
 import logging
 import math
 from dataclasses import asdict
+from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -32,14 +33,14 @@ import torch
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 from safetensors.torch import load_file, save
 
-from policies.hdqn import MODES
-from policies.hdqn.agent import AgentConfig, DQNAgent
-from policies.hdqn.network import PRESETS
-from policies.registry import rule_names
-from twin.errors import UserError
-from twin.output import atomic_path, write_text
-from twin.output import versions as package_versions
-from twin.scenario import Scenario
+from pnp_twin.policies.hdqn import MODES
+from pnp_twin.policies.hdqn.agent import AgentConfig, DQNAgent
+from pnp_twin.policies.hdqn.network import PRESETS
+from pnp_twin.policies.registry import rule_names
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.output import atomic_path, write_text
+from pnp_twin.twin.output import versions as package_versions
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 _WARNED: set[tuple[Any, ...]] = set()
@@ -283,13 +284,37 @@ def save_checkpoint(
     return folder
 
 
+def shipped_models() -> list[str]:
+    """Names of the models shipped with the package (usable without a path)."""
+    root = resources.files("pnp_twin.models")
+    return sorted(p.name for p in root.iterdir() if p.is_dir() and (p / META).is_file())
+
+
+def _shipped(path: Path) -> Path | None:
+    """The shipped model a relative path that does not exist names: ``NAME`` or
+    ``models/NAME`` (as the README writes it from a checkout)."""
+    parts = path.parts
+    if path.is_absolute() or path.exists() or not parts or len(parts) > 2:
+        return None
+    if len(parts) == 2 and parts[0] != "models":
+        return None
+    candidate = resources.files("pnp_twin.models") / parts[-1]
+    return Path(str(candidate)) if (candidate / META).is_file() else None
+
+
 def resolve(folder: str | Path) -> Path:
-    """The checkpoint folder itself, or the single run folder inside a training output."""
+    """The checkpoint folder itself, the single run folder inside a training output, or a
+    shipped model named like a scenario (:func:`shipped_models`)."""
     path = Path(folder).expanduser()
+    path = _shipped(path) or path
     if (path / META).is_file():
         return path
     if not path.is_dir():
-        raise CheckpointError(f"checkpoint: '{folder}' is not a folder")
+        shipped = ", ".join(shipped_models())
+        raise CheckpointError(
+            f"checkpoint: '{folder}' is not a folder; give a checkpoint folder or a shipped "
+            f"model ({shipped})"
+        )
     runs = sorted(p.parent for p in path.glob(f"*/{META}"))
     if len(runs) == 1:
         return runs[0]

@@ -15,19 +15,19 @@ from typing import Any
 
 import numpy as np
 
-from policies.base import RuleChoosingPolicy
-from policies.hdqn.agent import DQNAgent, decode_joint, robot_onehot
-from policies.hdqn.checkpoint import (
+from pnp_twin.policies.base import RuleChoosingPolicy
+from pnp_twin.policies.hdqn.agent import DQNAgent, decode_joint, robot_onehot
+from pnp_twin.policies.hdqn.checkpoint import (
     META,
     CheckpointError,
     load_agent,
     resolve,
     warn_if_other_line,
 )
-from twin.belt import Belt
-from twin.camera import BeltCamera
-from twin.decision import Decision, RobotSpec
-from twin.scenario import Scenario
+from pnp_twin.twin.belt import Belt
+from pnp_twin.twin.camera import BeltCamera
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 

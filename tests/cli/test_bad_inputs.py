@@ -533,7 +533,7 @@ def test_force_goes_ahead_above_the_limit(
     args: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr("twin.budget.MAX_PARTS", 10)  # every run is now "too large"
+    monkeypatch.setattr("pnp_twin.twin.budget.MAX_PARTS", 10)  # every run is now "too large"
     refused = CliRunner().invoke(app, args)
     assert refused.exit_code == 2 and "--force" in refused.stderr
     forced = CliRunner().invoke(app, [*args, "--force"])

@@ -15,8 +15,8 @@ import pytest
 from typer.testing import CliRunner
 
 from pnp_twin.cli import app
-from twin.loader import load_scenario, shipped_scenarios
-from twin.output import (
+from pnp_twin.twin.loader import load_scenario, shipped_scenarios
+from pnp_twin.twin.output import (
     OutputError,
     dumps_json,
     dumps_toml,
@@ -26,7 +26,7 @@ from twin.output import (
     write_table,
     write_text,
 )
-from twin.scenario import Scenario
+from pnp_twin.twin.scenario import Scenario
 
 SHORT = ["--set", "duration=40", "--set", "warmup=5"]
 ROOT = Path(__file__).resolve().parents[2]

@@ -16,7 +16,7 @@ import torch  # noqa: E402
 from safetensors.torch import load_file, save_file  # noqa: E402
 
 from pnp_twin.cli import app  # noqa: E402
-from policies.hdqn.checkpoint import CheckpointError, load_agent  # noqa: E402
+from pnp_twin.policies.hdqn.checkpoint import CheckpointError, load_agent  # noqa: E402
 
 SHIPPED = Path(__file__).resolve().parents[2] / "models" / "paper_baseline__async"
 SHORT = ["--set", "duration=8", "--set", "warmup=1"]
@@ -110,9 +110,9 @@ def test_a_broken_checkpoint_is_one_error_line_and_exit_2(broken, command):
 
 
 def test_a_model_trained_on_another_line_gives_one_warning(tmp_path, caplog):
-    from policies.registry import make_policy
-    from twin.loader import load_scenario
-    from twin.run import simulate
+    from pnp_twin.policies.registry import make_policy
+    from pnp_twin.twin.loader import load_scenario
+    from pnp_twin.twin.run import simulate
 
     scenario = load_scenario("paper_baseline", {"duration": 5.0, "warmup": 1.0, "belt.speed": 0.7})
     with caplog.at_level("WARNING"):

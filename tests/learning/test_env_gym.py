@@ -12,9 +12,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from pnp_twin.learning.envs import ENV_ID, EnvError, EpochDriver, PickPlaceEnv, make_env
-from policies import make_policy
-from twin.loader import load_scenario
-from twin.run import simulate
+from pnp_twin.policies import make_policy
+from pnp_twin.twin.loader import load_scenario
+from pnp_twin.twin.run import simulate
 
 SHORT = {"duration": 20.0, "warmup": 1.0}
 

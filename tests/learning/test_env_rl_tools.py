@@ -14,9 +14,9 @@ import pytest
 from pnp_twin.learning.envs import ENV_ID, EnvError, PickPlaceEnv, pickplace_v0, render
 from pnp_twin.learning.envs.pz_aec import PickPlaceAEC
 from pnp_twin.learning.envs.pz_parallel import PickPlaceParallel
-from policies import make_policy
-from twin.loader import load_scenario
-from twin.run import simulate
+from pnp_twin.policies import make_policy
+from pnp_twin.twin.loader import load_scenario
+from pnp_twin.twin.run import simulate
 
 SHORT = {"duration": 20.0, "warmup": 1.0}
 
@@ -220,7 +220,7 @@ def test_sb3_cnn_policy_takes_the_image_observation():
     action, _ = model.predict(env.reset(seed=0)[0], deterministic=True)
     assert env.action_space.contains(int(action))
     # the same model as a policy of the twin (sb3:MODEL.zip) sees the same upscaled image
-    from policies.sb3_policy import SB3Policy
+    from pnp_twin.policies.sb3_policy import SB3Policy
 
     policy = SB3Policy(model)
     env = PickPlaceEnv(overrides=SHORT, observation="image")

@@ -72,9 +72,9 @@ def test_sb3_dqn_trains_and_runs_an_episode(trained):
 def test_sb3_model_is_a_policy_that_does_what_the_env_rollout_does(trained):
     """``sb3:MODEL.zip`` in the twin chooses what the model chooses in the env, and the
     trained model does at least as well as the worst single rule on the same seed."""
-    from policies.registry import make_policy
-    from twin.loader import load_scenario
-    from twin.run import simulate
+    from pnp_twin.policies.registry import make_policy
+    from pnp_twin.twin.loader import load_scenario
+    from pnp_twin.twin.run import simulate
 
     model, _initial, path, kwargs = trained
     scenario = load_scenario("two_robot", kwargs["overrides"])

@@ -16,18 +16,18 @@ torch.set_num_threads(1)  # tiny networks: two intra-op threads are 100x slower 
 
 from pnp_twin.learning.replay import Batch, ReplayBuffer  # noqa: E402
 from pnp_twin.learning.train import TrainArgs, train  # noqa: E402
-from policies.hdqn.agent import (  # noqa: E402
+from pnp_twin.policies.hdqn.agent import (  # noqa: E402
     AgentConfig,
     DQNAgent,
     decode_joint,
     encode_joint,
     semi_mdp_targets,
 )
-from policies.hdqn.checkpoint import load_agent, save_checkpoint  # noqa: E402
-from policies.hdqn.network import build_network  # noqa: E402
-from policies.registry import make_policy  # noqa: E402
-from twin.loader import load_scenario, with_overrides  # noqa: E402
-from twin.run import simulate  # noqa: E402
+from pnp_twin.policies.hdqn.checkpoint import load_agent, save_checkpoint  # noqa: E402
+from pnp_twin.policies.hdqn.network import build_network  # noqa: E402
+from pnp_twin.policies.registry import make_policy  # noqa: E402
+from pnp_twin.twin.loader import load_scenario, with_overrides  # noqa: E402
+from pnp_twin.twin.run import simulate  # noqa: E402
 
 TINY = {"robots.count": 2, "feeder.rate": 5.0}
 
@@ -233,7 +233,7 @@ def test_single_mode_trains_a_joint_agent(tmp_path):
 
 
 def test_missing_checkpoint_is_a_one_line_user_error(tmp_path):
-    from twin.errors import UserError
+    from pnp_twin.twin.errors import UserError
 
     with pytest.raises(UserError, match="holds no meta.json") as e:
         make_policy(f"hdqn:{tmp_path}")
@@ -300,8 +300,8 @@ def test_evaluate_gives_the_same_table_on_every_engine_and_records_which_ran(tra
 )
 def test_policy_sees_the_same_observation_as_the_env_driver(mode, channels, view):
     from pnp_twin.learning.envs.driver import EpochDriver
-    from policies.hdqn.agent import robot_onehot
-    from policies.hdqn.policy import HDQNPolicy
+    from pnp_twin.policies.hdqn.agent import robot_onehot
+    from pnp_twin.policies.hdqn.policy import HDQNPolicy
 
     scenario = load_scenario("paper_baseline", TINY)
     driver = EpochDriver(scenario, seed=5, channels=channels)
@@ -332,7 +332,7 @@ def test_policy_sees_the_same_observation_as_the_env_driver(mode, channels, view
 
 
 def test_training_into_a_finished_run_without_resume_is_refused(trained):
-    from twin.errors import UserError
+    from pnp_twin.twin.errors import UserError
 
     out, folder = trained
     with pytest.raises(UserError, match="holds a run already"):
@@ -392,7 +392,7 @@ def test_belt_view_with_downstream_reward_trains_and_runs(tmp_path):
 
 
 def test_checkpoints_without_the_view_option_still_see_windows(tmp_path):
-    from policies.hdqn.policy import HDQNPolicy
+    from pnp_twin.policies.hdqn.policy import HDQNPolicy
 
     shipped = Path(__file__).resolve().parents[2] / "models" / "paper_baseline__async"
     if not (shipped / "meta.json").is_file():
@@ -419,7 +419,7 @@ def test_checkpoints_without_the_view_option_still_see_windows(tmp_path):
     ],
 )
 def test_bad_view_or_reward_is_a_one_line_user_error(tmp_path, kw, match):
-    from twin.errors import UserError
+    from pnp_twin.twin.errors import UserError
 
     with pytest.raises(UserError, match=match) as e:
         train(_tiny_args(tmp_path, 10, **kw))

@@ -15,13 +15,13 @@ torch = pytest.importorskip("torch")
 pytest.importorskip("safetensors")
 
 from pnp_twin.learning.train import TrainArgs, train  # noqa: E402
-from policies.hdqn.agent import AgentConfig, DQNAgent  # noqa: E402
-from policies.hdqn.checkpoint import load_agent  # noqa: E402
-from policies.hdqn.policy import HDQNPolicy  # noqa: E402
-from policies.registry import make_policy  # noqa: E402
-from policies.rules import RULES  # noqa: E402
-from twin.loader import load_scenario, with_overrides  # noqa: E402
-from twin.run import simulate  # noqa: E402
+from pnp_twin.policies.hdqn.agent import AgentConfig, DQNAgent  # noqa: E402
+from pnp_twin.policies.hdqn.checkpoint import load_agent  # noqa: E402
+from pnp_twin.policies.hdqn.policy import HDQNPolicy  # noqa: E402
+from pnp_twin.policies.registry import make_policy  # noqa: E402
+from pnp_twin.policies.rules import RULES  # noqa: E402
+from pnp_twin.twin.loader import load_scenario, with_overrides  # noqa: E402
+from pnp_twin.twin.run import simulate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = {"robots.count": 2, "feeder.rate": 5.0}

@@ -14,12 +14,12 @@ torch.set_num_threads(1)
 
 from pnp_twin.learning.rollout import LabelSettings, label_episode  # noqa: E402
 from pnp_twin.learning.rollout_train import RolloutArgs, train_rollout  # noqa: E402
-from policies.base import RuleMix  # noqa: E402
-from policies.registry import make_policy  # noqa: E402
-from twin.feeder import resampled, splice  # noqa: E402
-from twin.line import Line  # noqa: E402
-from twin.loader import load_scenario, with_overrides  # noqa: E402
-from twin.run import simulate  # noqa: E402
+from pnp_twin.policies.base import RuleMix  # noqa: E402
+from pnp_twin.policies.registry import make_policy  # noqa: E402
+from pnp_twin.twin.feeder import resampled, splice  # noqa: E402
+from pnp_twin.twin.line import Line  # noqa: E402
+from pnp_twin.twin.loader import load_scenario, with_overrides  # noqa: E402
+from pnp_twin.twin.run import simulate  # noqa: E402
 
 SMALL = LabelSettings(futures=2, episode_time=6.0, window=(2.0, 3.0))
 

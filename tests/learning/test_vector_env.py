@@ -12,9 +12,9 @@ from gymnasium.vector import AutoresetMode
 
 from pnp_twin.learning.envs import ENV_ID, MAX_EPISODE_STEPS, EnvError, PickPlaceEnv
 from pnp_twin.learning.envs.vector_env import PickPlaceVectorEnv
-from policies.rules import PAPER_RULES
-from twin.fast import batch
-from twin.fast import layout as L
+from pnp_twin.policies.rules import PAPER_RULES
+from pnp_twin.twin.fast import batch
+from pnp_twin.twin.fast import layout as L
 
 SHORT = {"duration": 6.0, "warmup": 1.0}
 

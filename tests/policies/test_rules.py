@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from policies import RULES, make_policy
-from policies.base import RuleMix
-from policies.registry import PolicyError
-from twin.decision import Decision, RobotSpec
-from twin.geometry import intercept_time, move_time
+from pnp_twin.policies import RULES, make_policy
+from pnp_twin.policies.base import RuleMix
+from pnp_twin.policies.registry import PolicyError
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.geometry import intercept_time, move_time
 
 SPEC = RobotSpec(
     index=0,

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from reports import build_report
+from pnp_twin.reports import build_report
 from tests.study_fixture import make_study
 
 CHROMIUM = Path("/usr/bin/chromium")

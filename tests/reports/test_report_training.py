@@ -11,16 +11,16 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from reports import ReportError, build_report, render_report
-from reports.training import evaluation_table, mode_rows
-from reports.training_figures import (
+from pnp_twin.reports import ReportError, build_report, render_report
+from pnp_twin.reports.training import evaluation_table, mode_rows
+from pnp_twin.reports.training_figures import (
     episode_rates,
     learning_figure,
     modes_figure,
     rule_shares,
     rules_figure,
 )
-from reports.training_load import is_training_folder, load_run, load_runs, run_folders
+from pnp_twin.reports.training_load import is_training_folder, load_run, load_runs, run_folders
 from tests.study_fixture import make_study
 
 RULES = ["FIFO", "SD", "SPT"]
@@ -247,7 +247,7 @@ def test_training_report_renders_offline(runs_dir: Path, tmp_path: Path) -> None
 
 
 def test_a_rollout_run_is_told_apart_from_the_td_async_run(tmp_path):
-    from reports.training_load import TrainingRun
+    from pnp_twin.reports.training_load import TrainingRun
 
     rollout = TrainingRun(
         tmp_path, {"mode": "async", "targets": "rollout", "train_args": {"seed": 1}}

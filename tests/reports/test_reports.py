@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 from plotly.offline import get_plotlyjs
 
-from reports import (
+from pnp_twin.reports import (
     ReportError,
     build_report,
     figures,
@@ -23,8 +23,8 @@ from reports import (
     render_report,
     welch,
 )
-from reports.answers import headline, mix_headline, size_headline
-from reports.text import fmt_pct, fmt_pm, key_findings, reference_point, sizing_text
+from pnp_twin.reports.answers import headline, mix_headline, size_headline
+from pnp_twin.reports.text import fmt_pct, fmt_pm, key_findings, reference_point, sizing_text
 from tests.study_fixture import make_study
 
 
@@ -337,7 +337,7 @@ def test_the_belt_animation_covers_the_chosen_window(sweep3: Path, tmp_path: Pat
     from typer.testing import CliRunner
 
     from pnp_twin.cli import app
-    from reports.record_figures import Animation
+    from pnp_twin.reports.record_figures import Animation
 
     page = layout.build_page(load_study(sweep3), Animation(start=30.0, seconds=10.0, step=0.5))
     belt = next(i for s in page.sections for i in s.items if getattr(i, "frames", None))

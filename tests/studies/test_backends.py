@@ -15,7 +15,7 @@ import pytest
 from pnp_twin.parallel import ParallelError, check_reachable, pool_map, process_alive
 from pnp_twin.studies.backends import run_specs
 from pnp_twin.studies.plan import StudyError, build_plan
-from twin import load_scenario, with_overrides
+from pnp_twin.twin import load_scenario, with_overrides
 
 ROOT = Path(__file__).resolve().parents[2]
 

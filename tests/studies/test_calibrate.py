@@ -24,7 +24,7 @@ from pnp_twin.studies.calibrate_fields import apply_values, parse_fit, resolve_p
 from pnp_twin.studies.calibrate_targets import read_targets
 from pnp_twin.studies.plan import StudyError
 from pnp_twin.studies.seeds import replication_seeds
-from twin.loader import load_scenario
+from pnp_twin.twin.loader import load_scenario
 
 SHORT = {"duration": 120.0, "warmup": 20.0}
 TRUE_BIN, TRUE_TIME = 0.4, 0.06
@@ -206,7 +206,7 @@ def test_fields_are_resolved_with_list_elements_and_ranges() -> None:
 def test_shipped_paper_targets_load() -> None:
     from importlib import resources
 
-    path = Path(str(resources.files("scenarios") / "calibration" / "paper_arm_speed.csv"))
+    path = Path(str(resources.files("pnp_twin.scenarios") / "calibration" / "paper_arm_speed.csv"))
     t = read_targets(path)
     assert [r.path for r in t.varied] == ["robots.arm_speed"]
     assert t.kpis == ("gripping_rate",)

@@ -13,7 +13,7 @@ import pytest
 from pnp_twin.studies.journal import REPLACED, Journal, changed_text, differences
 from pnp_twin.studies.lock import FolderBusy
 from pnp_twin.studies.plan import StudyError, build_plan
-from twin import load_scenario, with_overrides
+from pnp_twin.twin import load_scenario, with_overrides
 
 
 @pytest.fixture(scope="module")

@@ -8,12 +8,12 @@ import json
 import numpy as np
 import pytest
 
+from pnp_twin.policies import make_policy
 from pnp_twin.studies import Options
 from pnp_twin.studies.plan import StudyError
 from pnp_twin.studies.rulemix import run_mix
 from pnp_twin.studies.seeds import replication_seeds
-from policies import make_policy
-from twin import load_scenario, simulate, with_overrides
+from pnp_twin.twin import load_scenario, simulate, with_overrides
 
 RULES = ["FIFO", "LD", "SPT"]
 

@@ -7,7 +7,7 @@ import pytest
 
 from pnp_twin.studies.plan import StudyError, build_plan, expand_grid, run_id
 from pnp_twin.studies.seeds import replication_seeds
-from twin import load_scenario, with_overrides
+from pnp_twin.twin import load_scenario, with_overrides
 
 
 @pytest.fixture(scope="module")

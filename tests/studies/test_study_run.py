@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from pnp_twin.studies import Options, build_plan, run_sweep
 from pnp_twin.studies.plan import StudyError
-from twin import load_scenario, with_overrides
+from pnp_twin.twin import load_scenario, with_overrides
 
 GRID = {"robots.arm_speed": [2.0, 4.0], "feeder.rate": [8.0, 12.0]}
 

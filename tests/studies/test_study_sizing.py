@@ -16,8 +16,8 @@ from pnp_twin.studies.summary import (
     paired_differences,
     summarise,
 )
-from twin import load_scenario, with_overrides
-from twin.stats import t_interval, t_quantile
+from pnp_twin.twin import load_scenario, with_overrides
+from pnp_twin.twin.stats import t_interval, t_quantile
 
 
 def test_t_quantiles_match_tables():

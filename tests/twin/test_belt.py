@@ -7,10 +7,10 @@ import math
 import numpy as np
 import simpy
 
-from twin.belt import FREE, SWEEP, Belt
-from twin.feeder import Feeder
-from twin.records import Recorder
-from twin.scenario import FeederConfig
+from pnp_twin.twin.belt import FREE, SWEEP, Belt
+from pnp_twin.twin.feeder import Feeder
+from pnp_twin.twin.records import Recorder
+from pnp_twin.twin.scenario import FeederConfig
 
 # A 2 m belt at 0.5 m/s, 20 x 4 cells of 0.1 m; the last workspace ends at 1.5 m (3 s).
 FED = [0.0, 0.5, 1.0, 1.0, 2.5]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import simpy
 
-from twin.bin import Bin
+from pnp_twin.twin.bin import Bin
 
 
 def test_an_unlimited_bin_never_blocks():

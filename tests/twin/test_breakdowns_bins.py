@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from policies import make_policy
-from twin import simulate
-from twin.line import Line
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import simulate
+from pnp_twin.twin.line import Line
 
 # A light feed and a coarse belt grid keep long runs cheap (fewer NooP looks).
 LONG = {"feeder.rate": 4.0, "belt.grid": [8, 8], "warmup": 5.0}

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from twin.budget import (
+from pnp_twin.twin.budget import (
     MAX_PARTS,
     MAX_RUNS,
     BudgetError,
@@ -14,7 +14,7 @@ from twin.budget import (
     estimate_run,
     expected_parts,
 )
-from twin.loader import load_scenario, with_overrides
+from pnp_twin.twin.loader import load_scenario, with_overrides
 
 
 def test_expected_parts_is_rate_times_duration() -> None:
@@ -64,6 +64,6 @@ def test_a_trace_run_counts_its_rows() -> None:
 
 
 def test_a_trace_run_is_estimated_from_its_rows() -> None:
-    from twin.budget import expected_parts
+    from pnp_twin.twin.budget import expected_parts
 
     assert expected_parts(load_scenario("trace_replay")) == 730  # the shipped trace's rows

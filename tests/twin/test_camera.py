@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from twin.belt import Belt
-from twin.camera import BeltCamera
-from twin.scenario import Scenario
+from pnp_twin.twin.belt import Belt
+from pnp_twin.twin.camera import BeltCamera
+from pnp_twin.twin.scenario import Scenario
 
 # A 2 m belt at 0.5 m/s, 20 x 4 cells of 0.1 m; robots on [0.5, 1.0] and [1.0, 1.45].
 SCENARIO = Scenario.model_validate(

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from policies import make_policy
-from twin import simulate
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import simulate
 
 # Every random stream in use: Poisson arrivals, lateral positions, SIRO's policy stream and
 # exponential breakdowns, under the scheme with the most interplay (t_any).

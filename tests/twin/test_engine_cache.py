@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from twin.fast import jit
+from pnp_twin.twin.fast import jit
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -36,16 +36,39 @@ def test_the_fingerprint_covers_every_engine_source(
     assert jit.fingerprint() == before
 
 
+RUN = (
+    "from pnp_twin.twin import load_scenario, simulate;"
+    "from pnp_twin.policies import make_policy;"
+    "sc = load_scenario('two_robot', {'duration': 5.0, 'warmup': 1.0});"
+    "simulate(sc, make_policy('SPT', 2), engine='fast')"
+)
+
+
 def test_compiled_code_is_cached_under_the_fingerprint(tmp_path: Path) -> None:
-    stale = tmp_path / "pnp_twin" / "0123456789abcdef"
-    stale.mkdir(parents=True)
-    code = (
-        "from twin import load_scenario, simulate; from policies import make_policy;"
-        "sc = load_scenario('two_robot', {'duration': 5.0, 'warmup': 1.0});"
-        "simulate(sc, make_policy('SPT', 2), engine='fast')"
-    )
+    root = tmp_path / "pnp_twin"
+    ours = root / "0123456789abcdef"  # an older fingerprint this engine folder wrote
+    ours.mkdir(parents=True)
+    (ours / jit.OWNER).write_text(f"{jit.ENGINE}\n")
+    (ours / "folders.txt").write_text("")
+    theirs = root / "fedcba9876543210"  # another checkout's, sharing the cache folder
+    theirs.mkdir()
+    (theirs / jit.OWNER).write_text("/elsewhere/pnp_twin/twin/fast\n")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
-    subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, check=True)
-    folders = [p.name for p in (tmp_path / "pnp_twin").iterdir()]
-    assert folders == [jit.fingerprint()]  # another fingerprint's folder is gone
-    assert list((tmp_path / "pnp_twin" / folders[0]).rglob("*.nbi"))
+    subprocess.run([sys.executable, "-c", RUN], env=env, cwd=ROOT, check=True)
+    folders = sorted(p.name for p in root.iterdir())
+    assert folders == sorted([jit.fingerprint(), theirs.name])  # ours replaced, theirs kept
+    assert list((root / jit.fingerprint()).rglob("*.nbi"))
+    assert (root / jit.fingerprint() / jit.OWNER).read_text().strip() == str(jit.ENGINE)
+
+
+def test_a_read_only_package_caches_in_the_users_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    site = tmp_path / "site"
+    site.write_text("")  # nothing can be created below a file, not even by root
+    monkeypatch.setattr(jit, "ENGINE", site / "fast")
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "home_cache"))
+    assert jit.cache_root() == tmp_path / "home_cache" / "pnp_twin" / "numba"
+    monkeypatch.setattr(jit, "ENGINE", tmp_path / "checkout" / "fast")
+    assert jit.cache_root() == tmp_path / "checkout" / "fast" / "__pycache__" / "numba"

@@ -9,12 +9,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from policies import RuleChoosingPolicy, make_policy
-from twin import simulate
-from twin.decision import Decision, RobotSpec
-from twin.fast.engine import FastLine
-from twin.loader import load_scenario
-from twin.scenario import Scenario
+from pnp_twin.policies import RuleChoosingPolicy, make_policy
+from pnp_twin.twin import simulate
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.fast.engine import FastLine
+from pnp_twin.twin.loader import load_scenario
+from pnp_twin.twin.scenario import Scenario
 
 SCHEMES = ("t_continue", "t_all", "t_any")
 MODELS = "models/paper_baseline__"

@@ -9,12 +9,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from policies import make_policy
-from twin import simulate
-from twin.decision import Decision, RobotSpec
-from twin.fast import layout as L
-from twin.fast.engine import FastLine
-from twin.loader import load_scenario
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import simulate
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.fast import layout as L
+from pnp_twin.twin.fast.engine import FastLine
+from pnp_twin.twin.loader import load_scenario
 
 
 class _Warmup:

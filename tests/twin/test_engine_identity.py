@@ -19,13 +19,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from policies import RuleChoosingPolicy, make_policy
-from twin import simulate
-from twin.decision import Decision
-from twin.fast import EngineError
-from twin.loader import load_scenario, with_overrides
-from twin.run import RunResult
-from twin.scenario import Scenario
+from pnp_twin.policies import RuleChoosingPolicy, make_policy
+from pnp_twin.twin import simulate
+from pnp_twin.twin.decision import Decision
+from pnp_twin.twin.fast import EngineError
+from pnp_twin.twin.loader import load_scenario, with_overrides
+from pnp_twin.twin.run import RunResult
+from pnp_twin.twin.scenario import Scenario
 
 SHORT = {"duration": 30.0, "warmup": 5.0}
 SCHEMES = ("t_continue", "t_all", "t_any")
@@ -218,8 +218,8 @@ def test_random_lines_with_a_python_policy_are_identical(case: tuple[Scenario, s
 
 def test_kpis_from_the_engine_arrays_equal_kpis_from_its_tables() -> None:
     """One KPI code: the fast engine's arrays and its record tables give the same KPIs."""
-    from twin.fast.engine import FastLine
-    from twin.kpis import compute_kpis, table_kpis
+    from pnp_twin.twin.fast.engine import FastLine
+    from pnp_twin.twin.kpis import compute_kpis, table_kpis
 
     for name, rule in [("breakdowns", "SIRO"), ("paper_baseline", "SPT"), ("trace_replay", "LD")]:
         sc = scenario(name, termination="t_any", **{"bins.capacity": 5, "bins.change_time": 1.0})
@@ -236,7 +236,7 @@ def test_kpis_from_the_engine_arrays_equal_kpis_from_its_tables() -> None:
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_a_run_forked_midway_continues_identically(scheme: str) -> None:
     """State is arrays: stop anywhere, copy, continue; both copies end as one straight run."""
-    from twin.fast.engine import STATE, FastLine
+    from pnp_twin.twin.fast.engine import STATE, FastLine
 
     sc = scenario("breakdowns", termination=scheme, **{"bins.capacity": 4})
     whole = FastLine(sc, make_policy("SIRO", sc.robots.count))

@@ -14,15 +14,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from policies.rules import RULES
-from twin.decision import Decision, RobotSpec
-from twin.fast import layout as L
-from twin.fast.engine import FastLine
-from twin.fast.rollouts import continue_each, continue_one
-from twin.feeder import Feeder, splice
-from twin.line import Line
-from twin.loader import load_scenario
-from twin.scenario import Scenario
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.fast import layout as L
+from pnp_twin.twin.fast.engine import FastLine
+from pnp_twin.twin.fast.rollouts import continue_each, continue_one
+from pnp_twin.twin.feeder import Feeder, splice
+from pnp_twin.twin.line import Line
+from pnp_twin.twin.loader import load_scenario
+from pnp_twin.twin.scenario import Scenario
 
 
 class _Recorded:

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import simpy
 
-from twin.decision import Decision, RobotSpec
-from twin.gateway import Gateway
-from twin.records import Recorder
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.gateway import Gateway
+from pnp_twin.twin.records import Recorder
 
 
 class FakeRobot:

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from twin.geometry import intercept_time, move_time, position_along
+from pnp_twin.twin.geometry import intercept_time, move_time, position_along
 
 
 def quadratic_intercept(dx: float, dy: float, vb: float, vr: float) -> float:

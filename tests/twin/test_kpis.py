@@ -9,12 +9,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from policies import make_policy
-from twin import simulate
-from twin.decision import RobotSpec
-from twin.kpis import flat_kpis, table_kpis
-from twin.line import robot_specs
-from twin.records import PART_COLUMNS, SPAN_COLUMNS
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import simulate
+from pnp_twin.twin.decision import RobotSpec
+from pnp_twin.twin.kpis import flat_kpis, table_kpis
+from pnp_twin.twin.line import robot_specs
+from pnp_twin.twin.records import PART_COLUMNS, SPAN_COLUMNS
 
 NAN = math.nan
 WARMUP, DURATION = 10.0, 20.0  # the window is [10, 20): 10 s

@@ -12,8 +12,8 @@ from functools import cache
 
 import pytest
 
-from policies import make_policy
-from twin import simulate
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import simulate
 
 NOISE = 1.5  # percentage points of G
 CASES = [  # (termination, policy, seeds)

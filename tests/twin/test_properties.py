@@ -15,7 +15,7 @@ from typing import Any
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from policies import RULES, make_policy
+from pnp_twin.policies import RULES, make_policy
 
 RULE_NAMES = sorted(RULES)
 

@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 import simpy
 
-from twin.belt import FREE, Belt
-from twin.bin import Bin
-from twin.decision import Decision, RobotSpec
-from twin.feeder import Feeder
-from twin.gateway import Gateway
-from twin.records import Recorder
-from twin.robot import Failures, Robot
-from twin.scenario import FeederConfig
+from pnp_twin.twin.belt import FREE, Belt
+from pnp_twin.twin.bin import Bin
+from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.feeder import Feeder
+from pnp_twin.twin.gateway import Gateway
+from pnp_twin.twin.records import Recorder
+from pnp_twin.twin.robot import Failures, Robot
+from pnp_twin.twin.scenario import FeederConfig
 
 SPEC = RobotSpec(0, 1, (0.5, 1.0), (0.75, 0.6), 1.0, 0.0, 0.1, 0.2, 0.5, 0.4)
 

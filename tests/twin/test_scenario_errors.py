@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from pnp_twin.cli import app
-from twin.loader import (
+from pnp_twin.twin.loader import (
     ScenarioError,
     apply_overrides,
     load_scenario,
@@ -18,7 +18,7 @@ from twin.loader import (
     validate,
     with_overrides,
 )
-from twin.scenario import Scenario
+from pnp_twin.twin.scenario import Scenario
 
 # name -> (files to write in the working folder, command line, substrings the line must hold)
 CASES: dict[str, tuple[dict[str, str], list[str], list[str]]] = {
@@ -282,7 +282,7 @@ def test_source_dir_is_set_by_the_loader_only() -> None:
 
 
 def test_set_takes_text_fields_as_written() -> None:
-    from twin.loader import parse_sets
+    from pnp_twin.twin.loader import parse_sets
 
     sets = parse_sets(["name=on", "description=Line 3: week 12", "policy=SPT", "seed=007"])
     assert sets == {"name": "on", "description": "Line 3: week 12", "policy": "SPT", "seed": 7}

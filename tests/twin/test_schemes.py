@@ -12,8 +12,8 @@ from collections import defaultdict
 import pandas as pd
 import pytest
 
-from policies import make_policy
-from twin import simulate
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import simulate
 
 
 def decision_instants(parts: pd.DataFrame, spans: pd.DataFrame) -> dict[int, set[float]]:

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from pnp_twin.cli.run_cmd import schema_text
-from policies import make_policy
-from twin import load_scenario, simulate, with_overrides
-from twin.loader import find_scenario, read_mapping, shipped_scenarios, validate
-from twin.scenario import Scenario
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import load_scenario, simulate, with_overrides
+from pnp_twin.twin.loader import find_scenario, read_mapping, shipped_scenarios, validate
+from pnp_twin.twin.scenario import Scenario
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 OURS = ("paper_baseline", "two_robot", "trace_replay", "breakdowns")

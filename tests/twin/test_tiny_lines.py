@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from policies import make_policy
-from twin import simulate
-from twin.geometry import intercept_time, move_time
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import simulate
+from pnp_twin.twin.geometry import intercept_time, move_time
 
 V_B, V_R, PICK, PLACE = 0.5, 2.0, 0.1, 0.15
 WIDTH = 0.4

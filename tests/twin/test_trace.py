@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from policies import make_policy
-from twin import simulate
-from twin.feeder import read_trace as feeder_read_trace
-from twin.loader import load_scenario
-from twin.trace import EPOCH, TraceError, check_replay, load_trace, read_trace
+from pnp_twin.policies import make_policy
+from pnp_twin.twin import simulate
+from pnp_twin.twin.feeder import read_trace as feeder_read_trace
+from pnp_twin.twin.loader import load_scenario
+from pnp_twin.twin.trace import EPOCH, TraceError, check_replay, load_trace, read_trace
 
 WIDTH = 0.4
 
@@ -81,7 +81,7 @@ def test_epoch_times_are_offset_to_the_first_arrival(
 ) -> None:
     t0 = 1_733_000_000.25  # 2024, as Unix time
     path = write(tmp_path, f"time,y\n{t0},0.1\n{t0 + 0.5},0.2\n{t0 + 2},0.3\n")
-    with caplog.at_level(logging.INFO, logger="twin.trace"):
+    with caplog.at_level(logging.INFO, logger="pnp_twin.twin.trace"):
         trace = load_trace(path, WIDTH)
     assert trace.offset == t0
     assert np.allclose(trace.times, [0.0, 0.5, 2.0])

@@ -26,11 +26,11 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from twin.decision import Policy
-    from twin.run import RunResult
-    from twin.scenario import Scenario
+    from pnp_twin.twin.decision import Policy
+    from pnp_twin.twin.run import RunResult
+    from pnp_twin.twin.scenario import Scenario
 
-from twin.errors import UserError
+from pnp_twin.twin.errors import UserError
 
 ENGINES = ("simpy", "fast", "auto")
 
@@ -51,7 +51,7 @@ def simulate_fast(
     scenario: Scenario, policy: Policy, seed: int | None = None, policy_name: str | None = None
 ) -> RunResult:
     """:func:`twin.run.simulate` on the compiled engine."""
-    from twin.fast.run import simulate_fast as run
+    from pnp_twin.twin.fast.run import simulate_fast as run
 
     return run(scenario, policy, seed=seed, policy_name=policy_name)
 
@@ -60,15 +60,15 @@ def prepare() -> None:
     """Compile the kernel now (or load it from the on-disk cache). A study calls this once
     before it starts worker processes, so that they load the kernel instead of each
     compiling it (about 14 s of CPU, once per installation)."""
-    from twin.fast.engine import FastLine
-    from twin.scenario import Scenario
+    from pnp_twin.twin.fast.engine import FastLine
+    from pnp_twin.twin.scenario import Scenario
 
     FastLine(Scenario(duration=1.0, warmup=0.0), rules=["SIRO"]).run()
 
 
 def __getattr__(name: str) -> Any:
     if name == "FastLine":
-        from twin.fast.engine import FastLine
+        from pnp_twin.twin.fast.engine import FastLine
 
         return FastLine
     raise AttributeError(name)

@@ -16,12 +16,12 @@ import os
 
 import numpy as np
 
-from twin.camera import BeltCamera
-from twin.fast import layout as L
-from twin.fast import vector as V
-from twin.fast.engine import FastLine
-from twin.feeder import Feeder
-from twin.scenario import Scenario
+from pnp_twin.twin.camera import BeltCamera
+from pnp_twin.twin.fast import layout as L
+from pnp_twin.twin.fast import vector as V
+from pnp_twin.twin.fast.engine import FastLine
+from pnp_twin.twin.feeder import Feeder
+from pnp_twin.twin.scenario import Scenario
 
 SIRO_ROOM, SIRO_MARGIN = 2048, 256
 """Pre-drawn SIRO draws per line; topped up when fewer than the margin remain (a step

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.geometry import exit_time
+from pnp_twin.twin.geometry import exit_time
 
 
 class BeltView:

@@ -27,37 +27,32 @@ from typing import Any
 
 import numpy as np
 
-from twin.decision import Decision, Policy, RobotSpec
-from twin.fast import layout as L
-from twin.fast.belt_view import BeltView
-from twin.fast.kernel import (
+from pnp_twin.twin.decision import Decision, Policy, RobotSpec, fixed_rules
+from pnp_twin.twin.fast import layout as L
+from pnp_twin.twin.fast.belt_view import BeltView
+from pnp_twin.twin.fast.kernel import (
     choose_external,
     close_open_spans,
     release,
     run_events,
     start_robots,
 )
-from twin.feeder import Feeder
-from twin.kpis import SPAN_STATES, PartRecords, SpanRecords
-from twin.line import DRAIN_SLACK, robot_specs
-from twin.records import Recorder
-from twin.scenario import Scenario
+from pnp_twin.twin.feeder import Feeder
+from pnp_twin.twin.kpis import SPAN_STATES, PartRecords, SpanRecords
+from pnp_twin.twin.line import DRAIN_SLACK, robot_specs
+from pnp_twin.twin.records import Recorder
+from pnp_twin.twin.scenario import Scenario
 
 
 class Unsupported(ValueError):
     """The fast engine cannot run this line as asked; the message says why."""
 
 
-def is_rule_mix(policy: Policy) -> bool:
-    """A plain rule mix (policies.base.RuleMix, not a subclass): compiled, not called back."""
-    cls = type(policy)
-    return cls.__name__ == "RuleMix" and cls.__module__ == "policies.base"
-
-
 def rule_codes(policy: Policy, n_robots: int) -> list[int] | None:
-    """Per-robot rule codes of a plain rule mix (after its reset), None if it names other
-    rules or another robot count."""
-    rules = list(getattr(policy, "rules", []))
+    """Per-robot rule codes of a policy that picks by fixed built-in rules (after its reset:
+    :func:`~pnp_twin.twin.decision.fixed_rules`), None if it names other rules or another
+    robot count, or chooses otherwise."""
+    rules = fixed_rules(policy) or []
     if len(rules) != n_robots or any(r not in L.RULE_NAMES[:-1] for r in rules):
         return None
     return [L.RULE_NAMES.index(r) for r in rules]
@@ -135,7 +130,7 @@ class FastLine:
         self.extra_counts: Counter[tuple[int, str]] = Counter()
         if policy is not None:
             codes = None
-            if is_rule_mix(policy):
+            if hasattr(policy, "fixed_rules"):
                 policy.reset(self.specs, streams[2])  # as Line resets it (a mix of one widens)
                 codes = rule_codes(policy, n)
             if codes is None:

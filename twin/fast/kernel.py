@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import math
 
-from twin.fast.jit import compiled
-from twin.fast.layout import (
+from pnp_twin.twin.fast.jit import compiled
+from pnp_twin.twin.fast.layout import (
     ACC,
     ACTIVE,
     APPROACH,
@@ -122,7 +122,7 @@ from twin.fast.layout import (
     XLO,
     V,
 )
-from twin.fast.mathlib import intercept_time, move_time, position_along, py_hypot, py_pow
+from pnp_twin.twin.fast.mathlib import intercept_time, move_time, position_along, py_hypot, py_pow
 
 FREE = -1
 

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from twin.fast.jit import compiled
+from pnp_twin.twin.fast.jit import compiled
 
 T27 = 134217729.0  # Veltkamp constant 2**27 + 1
 

@@ -20,10 +20,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from twin.fast import layout as L
-from twin.fast.engine import FastLine
-from twin.fast.jit import compiled
-from twin.fast.kernel import choose_external, run_events
+from pnp_twin.twin.fast import layout as L
+from pnp_twin.twin.fast.engine import FastLine
+from pnp_twin.twin.fast.jit import compiled
+from pnp_twin.twin.fast.kernel import choose_external, run_events
 
 
 @compiled()

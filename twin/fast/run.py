@@ -11,11 +11,11 @@ from __future__ import annotations
 import functools
 import time
 
-from twin.decision import Policy
-from twin.fast.engine import FastLine
-from twin.kpis import compute_kpis
-from twin.run import RunResult, policy_label, run_result
-from twin.scenario import Scenario
+from pnp_twin.twin.decision import Policy
+from pnp_twin.twin.fast.engine import FastLine
+from pnp_twin.twin.kpis import compute_kpis
+from pnp_twin.twin.run import RunResult, policy_label, run_result
+from pnp_twin.twin.scenario import Scenario
 
 
 def simulate_fast(

@@ -20,9 +20,9 @@ import math
 import numpy as np
 from numba import prange
 
-from twin.fast.jit import compiled
-from twin.fast.kernel import release, run_events, start_robots
-from twin.fast.layout import CLAIMED, LASTCLAIM, NOOP, NOW, PENDING, RULE, ST_EPOCH, STATUS
+from pnp_twin.twin.fast.jit import compiled
+from pnp_twin.twin.fast.kernel import release, run_events, start_robots
+from pnp_twin.twin.fast.layout import CLAIMED, LASTCLAIM, NOOP, NOW, PENDING, RULE, ST_EPOCH, STATUS
 
 # env float parameters ef[.]
 DURATION, MAX_TIME, W_EXT, W_INT, PENALTY, BELT_LAG, END_LAG, COL_SCALE, ROW_SCALE, SPEED = range(

@@ -24,7 +24,7 @@ from pnp_twin.learning.envs.driver import (
     intrinsic_reward,
 )
 from pnp_twin.learning.envs.gym_env import PickPlaceEnv
-from twin.camera import CHANNELS, BeltCamera
+from pnp_twin.twin.camera import CHANNELS, BeltCamera
 
 ENV_ID = "pnp_twin/PickPlace-v0"
 

@@ -28,16 +28,16 @@ from typing import Any
 
 import numpy as np
 
-from policies.base import SettableRules
-from policies.registry import rule_names
-from policies.rules import PAPER_RULES
-from twin.camera import CHANNELS, BeltCamera
-from twin.decision import Decision
-from twin.errors import UserError
-from twin.gateway import SCHEMES
-from twin.line import Line
-from twin.loader import load_scenario, with_overrides
-from twin.scenario import Scenario
+from pnp_twin.policies.base import SettableRules
+from pnp_twin.policies.registry import rule_names
+from pnp_twin.policies.rules import PAPER_RULES
+from pnp_twin.twin.camera import CHANNELS, BeltCamera
+from pnp_twin.twin.decision import Decision
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.gateway import SCHEMES
+from pnp_twin.twin.line import Line
+from pnp_twin.twin.loader import load_scenario, with_overrides
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 

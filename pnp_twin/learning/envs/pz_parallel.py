@@ -20,8 +20,8 @@ from pnp_twin.learning.envs.common import (
 from pnp_twin.learning.envs.driver import EnvError, EpochDriver, is_rule_index
 from pnp_twin.learning.envs.pz_aec import agent_name
 from pnp_twin.learning.envs.render import RENDER_FPS, RENDER_MODES
-from policies.rules import PAPER_RULES
-from twin.scenario import Scenario
+from pnp_twin.policies.rules import PAPER_RULES
+from pnp_twin.twin.scenario import Scenario
 
 
 class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from twin.line import Line
+    from pnp_twin.twin.line import Line
 
 RENDER_MODES = ["rgb_array", "ansi"]
 RENDER_FPS = 10

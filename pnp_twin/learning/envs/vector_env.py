@@ -15,10 +15,10 @@ from gymnasium.vector.utils import batch_space
 from pnp_twin.learning.envs.common import EpisodeLimits, ObservationView, line_seed
 from pnp_twin.learning.envs.driver import EnvError, check_rules, resolve_scenario
 from pnp_twin.learning.envs.gym_env import ACTION_TYPES
-from policies.rules import PAPER_RULES
-from twin.camera import CHANNELS
-from twin.fast import layout as L
-from twin.scenario import Scenario
+from pnp_twin.policies.rules import PAPER_RULES
+from pnp_twin.twin.camera import CHANNELS
+from pnp_twin.twin.fast import layout as L
+from pnp_twin.twin.scenario import Scenario
 
 FAST_RULES = L.RULE_NAMES[:-1]
 """The rules the compiled engine runs (FIFO LIFO SIRO SD LD SPT)."""
@@ -77,8 +77,8 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         copy: bool = True,
         render_mode: str | None = None,
     ) -> None:
-        from twin.fast import vector as V
-        from twin.fast.batch import LineBatch
+        from pnp_twin.twin.fast import vector as V
+        from pnp_twin.twin.fast.batch import LineBatch
 
         n = _check_args(num_envs, action_type, channels, reward_weights, render_mode)
         limits = EpisodeLimits.check(max_episode_steps, max_episode_time)
@@ -196,7 +196,7 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self.batch.load(e, seed)
 
     def _run(self, codes: np.ndarray, fresh: np.ndarray, act: bool = False) -> None:
-        from twin.fast.vector import ACT, RESET, SKIP
+        from pnp_twin.twin.fast.vector import ACT, RESET, SKIP
 
         mode = np.where(fresh, RESET, ACT if act else SKIP).astype(np.int8)
         self.batch.step(codes, mode)
