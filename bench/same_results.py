@@ -7,11 +7,12 @@ what they produce.
 
 Compared, each side in its own interpreter with only its own tree on ``PYTHONPATH``:
 
-- for each shipped scenario, ``run --json`` (timings removed), ``--events`` and ``--spans``;
+- for each shipped scenario, ``run --json`` (timings removed), ``--events`` and ``--spans``,
+  and the same records from the compiled engine (``--engine fast``);
 - ``run paper_baseline --policy hdqn:models/...`` with each shipped checkpoint (events);
 - a short sweep's ``results.csv`` / ``summary.csv`` / ``paired.csv`` / ``best.csv``;
 - the learning interface: observations and rewards of the epoch driver under all three
-  termination schemes, and one episode's rollout labels;
+  termination schemes, one episode's rollout labels, and 300 steps of the compiled vector env;
 - a short training run's ``model.safetensors``.
 
 Each output gets one verdict: ``identical`` (the same bytes); ``same values`` (every value
@@ -85,6 +86,20 @@ lab = label_episode(load_scenario("paper_baseline"), 7,
                     LabelSettings(episode_time=6.0, window=(3.0, 4.0), futures=2))
 print("labels", hashlib.sha256(lab.obs.tobytes() + lab.robot.tobytes()
                                + lab.advantage.tobytes()).hexdigest())
+try:
+    from pnp_twin.learning.envs.vector_env import PickPlaceVectorEnv
+except ImportError:
+    PickPlaceVectorEnv = None
+if PickPlaceVectorEnv is not None:
+    h = hashlib.sha256()
+    env = PickPlaceVectorEnv(num_envs=4, overrides={"duration": 20.0, "warmup": 5.0})
+    obs, _ = env.reset(seed=5)
+    rng = np.random.default_rng(1)
+    for _ in range(300):
+        obs, rew, term, trunc, _ = env.step(rng.integers(env.single_action_space.n, size=4))
+        h.update(np.asarray(obs).tobytes() + np.asarray(rew).tobytes()
+                 + np.asarray(term).tobytes() + np.asarray(trunc).tobytes())
+    print("vector_env", h.hexdigest())
 """
 
 
@@ -126,6 +141,11 @@ def outputs(tree: Path, work: Path) -> dict[str, Path]:
         js.write_text(json.dumps(scrub(json.loads(text)), sort_keys=True, indent=1))
         found[f"run {name} --json"], found[f"run {name} --events"] = js, ev
         found[f"run {name} --spans"] = sp
+        fev, fsp = work / f"{name}.fast.events.csv", work / f"{name}.fast.spans.csv"
+        fast = ["--engine", "fast", "--events", str(fev), "--spans", str(fsp)]
+        cli(tree, ["run", name, *fast, *short], work)
+        found[f"run {name} --engine fast --events"] = fev
+        found[f"run {name} --engine fast --spans"] = fsp
     for ck in CHECKPOINTS:
         ev = work / f"hdqn_{ck}.events.csv"
         policy = f"hdqn:{ROOT / 'models' / f'paper_baseline__{ck}'}"
