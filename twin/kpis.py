@@ -162,33 +162,52 @@ def state_times(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: f
     return out
 
 
-def welch_series(parts: PartRecords, duration: float, bins: int = WELCH_BINS) -> list[float]:
-    """G (%) of the parts fed in each of ``bins`` equal bins of [0, duration)."""
-    fed = parts.fed_at
-    inside = (fed >= 0) & (fed < duration)
-    k = np.minimum((fed[inside] / duration * bins).astype(np.int64), bins - 1)
-    picked = parts.picked[inside]
-    n = np.bincount(k, minlength=bins)
-    hit = np.bincount(k, weights=picked.astype(float), minlength=bins)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        g = np.where(n > 0, 100.0 * hit / np.maximum(n, 1), np.nan)
-    return [round(float(x), 3) for x in g]
+@dataclass(frozen=True)
+class KpiTally:
+    """The sums over a run's records that the KPIs are made of (one pass over the records;
+    the fast engine fills it in one compiled pass: :func:`twin.fast.tally.tally`)."""
+
+    presented: int  # parts fed in the window
+    picked: int  # of those, picked
+    picks: np.ndarray  # (n,) int: picks of the window per robot
+    states: np.ndarray  # (n, STATES) seconds in each state inside the window
+    cycles: np.ndarray  # cycle times (placed - decided) of the window's picks, in part order
+    robot_cycles: np.ndarray  # the same grouped by robot (part order within a robot)
+    robot_starts: np.ndarray  # (n + 1,) int: robot i's are robot_cycles[starts[i]:starts[i+1]]
+    rules: np.ndarray  # (len(rule_names) + 1,) int: the window's picks per rule code + 1
+    noops: int  # NooPs started in the window
+    welch_parts: np.ndarray  # (WELCH_BINS,) int: parts fed per bin of [0, duration)
+    welch_picked: np.ndarray  # (WELCH_BINS,) float: of those, picked
 
 
-def decision_counts(
-    parts: PartRecords, win: np.ndarray, spans: SpanRecords, w0: float, w1: float
-) -> dict[str, int]:
-    """Picks of the window by rule ("?" without a name) and NooPs that started in it."""
-    picked = win & parts.picked
-    found = np.bincount(parts.rule[picked] + 1, minlength=len(parts.rule_names) + 1)
-    labels = ("?", *parts.rule_names)
-    rules: dict[str, int] = {}
-    for c in np.flatnonzero(found):
-        rules[labels[c]] = rules.get(labels[c], 0) + int(found[c])
+def tally(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) -> KpiTally:
+    """:class:`KpiTally` of the records (numpy) for window [w0, w1) (w1: the duration)."""
+    win = (parts.fed_at >= w0) & (parts.fed_at < w1)
+    is_picked = parts.picked[win]
+    robot_of = np.where(parts.picked, parts.robot, -1)[win]
+    cycles = (parts.placed_at[win] - parts.decided_at[win])[is_picked]
+    mine = robot_of[is_picked]
+    order = np.argsort(mine, kind="stable")
     start = spans.start
     noops = (spans.state == SPAN_STATES.index("noop")) & (start >= w0) & (start < w1)
-    rules["NooP"] = int(noops.sum())
-    return {k: rules[k] for k in sorted(rules)}
+    fed = parts.fed_at
+    inside = (fed >= 0) & (fed < w1)
+    k = np.minimum((fed[inside] / w1 * WELCH_BINS).astype(np.int64), WELCH_BINS - 1)
+    return KpiTally(
+        presented=int(win.sum()),
+        picked=int(is_picked.sum()),
+        picks=np.bincount(mine, minlength=n)[:n],
+        states=state_times(parts, spans, n, w0, w1),
+        cycles=cycles,
+        robot_cycles=cycles[order],
+        robot_starts=np.searchsorted(mine[order], np.arange(n + 1)),
+        rules=np.bincount(parts.rule[win & parts.picked] + 1, minlength=len(parts.rule_names) + 1),
+        noops=int(noops.sum()),
+        welch_parts=np.bincount(k, minlength=WELCH_BINS),
+        welch_picked=np.bincount(
+            k, weights=parts.picked[inside].astype(float), minlength=WELCH_BINS
+        ),
+    )
 
 
 def compute_kpis(
@@ -199,29 +218,39 @@ def compute_kpis(
     duration: float,
 ) -> dict[str, Any]:
     """The KPI dictionary of one run (see the module docstring for definitions)."""
+    sums = tally(parts, spans, len(specs), warmup, duration)
+    return tally_kpis(sums, parts.rule_names, specs, warmup, duration)
+
+
+def tally_kpis(
+    sums: KpiTally,
+    rule_names: Sequence[str],
+    specs: Sequence[RobotSpec],
+    warmup: float,
+    duration: float,
+) -> dict[str, Any]:
+    """The KPI dictionary of a run's :class:`KpiTally` (``rule_names``: the rule codes')."""
     n = len(specs)
     w0, w1 = warmup, duration
     span = w1 - w0
-    win = (parts.fed_at >= w0) & (parts.fed_at < w1)
-    presented = int(win.sum())
-    is_picked = parts.picked[win]
-    picked = int(is_picked.sum())
-    robot_of = np.where(parts.picked, parts.robot, -1)[win]
-    picks = np.bincount(robot_of[is_picked], minlength=n)[:n]
-    states = state_times(parts, spans, n, w0, w1)
+    presented = sums.presented
+    picked = sums.picked
+    picks = sums.picks
+    states = sums.states
     nominal = np.array([robot_capacity(s) for s in specs])
-    cycle_all = parts.placed_at[win] - parts.decided_at[win]
     busy = states[:, 0]
     worked = (busy > 0) & (picks > 0)
     caps = np.where(worked, picks / np.where(worked, busy, 1.0), nominal)
     flow = presented / span
     max_tp = min(flow, float(caps.sum()))
     tp = picked / span
-    cycles = cycle_all[is_picked]
-    lost = int(np.sum(~is_picked))
+    cycles = sums.cycles
+    lost = presented - picked
+    starts = sums.robot_starts.tolist()
+    later = np.cumsum(picks[::-1])[::-1].tolist()[1:] + [0]  # picks downstream of robot i
     robots = []
     for i in range(n):
-        mine = cycle_all[is_picked & (robot_of == i)]
+        mine = sums.robot_cycles[starts[i] : starts[i + 1]]
         robots.append(
             {
                 "robot": i + 1,
@@ -234,13 +263,15 @@ def compute_kpis(
                 "blocked": float(states[i, 3] / span),
                 "down": float(states[i, 4] / span),
                 "availability": float(1.0 - states[i, 4] / span),
-                "passed_on": int(np.sum(robot_of[is_picked] > i)),
+                "passed_on": int(later[i]),
                 "lost": lost,
                 "cycle_time_mean": float(mine.mean()) if len(mine) else math.nan,
                 "capacity": float(caps[i]),
                 "nominal_capacity": float(nominal[i]),
             }
         )
+    if len(cycles):
+        p50, p95 = np.percentile(cycles, [50, 95]).tolist()
     return {
         "gripping_rate": 100.0 * picked / presented if presented else math.nan,
         "parts_presented": presented,
@@ -249,17 +280,35 @@ def compute_kpis(
         "throughput": tp,
         "part_flow": flow,
         "max_throughput": max_tp,
-        "efficiency": tp / max_tp if max_tp > 0 else math.nan,
+        # <= 1 in exact arithmetic; the rounding of the capacities' sum can pass it by an ulp
+        "efficiency": min(tp / max_tp, 1.0) if max_tp > 0 else math.nan,
         "utilisation": float(states[:, 0].sum() / (span * n)),
         "cycle_time_mean": float(cycles.mean()) if len(cycles) else math.nan,
-        "cycle_time_p50": float(np.percentile(cycles, 50)) if len(cycles) else math.nan,
-        "cycle_time_p95": float(np.percentile(cycles, 95)) if len(cycles) else math.nan,
+        "cycle_time_p50": p50 if len(cycles) else math.nan,
+        "cycle_time_p95": p95 if len(cycles) else math.nan,
         "cycle_time_max": float(cycles.max()) if len(cycles) else math.nan,
-        "decisions": decision_counts(parts, win, spans, w0, w1),
+        "decisions": _decisions(sums, rule_names),
         "window": [w0, w1],
-        "welch_gripping_rate": welch_series(parts, w1),
+        "welch_gripping_rate": _welch(sums),
         "robots": robots,
     }
+
+
+def _decisions(sums: KpiTally, rule_names: Sequence[str]) -> dict[str, int]:
+    """Picks of the window by rule ("?" without a name) and NooPs that started in it."""
+    labels = ("?", *rule_names)
+    rules: dict[str, int] = {}
+    for c in np.flatnonzero(sums.rules).tolist():
+        rules[labels[c]] = rules.get(labels[c], 0) + int(sums.rules[c])
+    rules["NooP"] = sums.noops
+    return {k: rules[k] for k in sorted(rules)}
+
+
+def _welch(sums: KpiTally) -> list[float]:
+    n, hit = sums.welch_parts, sums.welch_picked
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = np.where(n > 0, 100.0 * hit / np.maximum(n, 1), np.nan)
+    return [round(x, 3) for x in g.tolist()]
 
 
 def table_kpis(

@@ -8,15 +8,31 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
+import numpy.typing as npt
 
-from pnp_twin.twin.belt import Belt
 from pnp_twin.twin.geometry import exit_time
 
 if TYPE_CHECKING:
     import pandas as pd
+
+
+class FedParts(Protocol):
+    """What :meth:`Recorder.parts_frame` reads of a belt (:class:`twin.belt.Belt`, or the
+    fast engine's view of its arrays): a protocol, so this module does not import the belt
+    that records into it."""
+
+    @property
+    def fed(self) -> npt.ArrayLike: ...
+    @property
+    def y(self) -> npt.ArrayLike: ...
+    @property
+    def kind(self) -> list[str] | None: ...
+    @property
+    def speed(self) -> float: ...
+
 
 PART_COLUMNS = [
     "part",
@@ -96,7 +112,7 @@ class Recorder:
         """``part`` passed the end of the last workspace unpicked at ``at`` (the belt)."""
         self.missed_at[part] = at
 
-    def parts_frame(self, belt: Belt, last_workspace_end: float) -> pd.DataFrame:
+    def parts_frame(self, belt: FedParts, last_workspace_end: float) -> pd.DataFrame:
         """One row per part fed: outcome picked/missed; a missed part's left_at is when it
         passed the end of the last workspace (as the belt recorded it; parts still on the
         belt when a run is cut short get the time they will pass it)."""

@@ -20,6 +20,7 @@ from pnp_twin.twin.geometry import (
     move_time,
     position_along,
 )
+from pnp_twin.twin.plan import RobotPlan, reach_margin
 from pnp_twin.twin.records import Recorder
 
 if TYPE_CHECKING:
@@ -59,7 +60,10 @@ class Robot:
         bin_: Bin,
         recorder: Recorder,
         failures: Failures | None = None,
+        plan: RobotPlan | None = None,
     ) -> None:
+        """``plan``: the robot's derived constants as the line's plan computed them (computed
+        here from ``spec`` when not given)."""
         self.env = env
         self.spec = spec
         self.index = spec.index
@@ -67,15 +71,20 @@ class Robot:
         self.bin = bin_
         self.recorder = recorder
         self.a, self.b = spec.workspace
-        self.base = ((self.a + self.b) / 2.0, belt.width / 2.0)
+        if plan is None:
+            plan = RobotPlan(
+                spec,
+                reach_margin(spec),
+                intercept_quad(spec.arm_speed, spec.belt_speed),
+                ((self.a + self.b) / 2.0, belt.width / 2.0),
+                0.0,
+                0.0,
+                "",
+            )
+        self.base = plan.base
         self.tool = self.base
-        # Upstream parts can only be intercepted inside [a, b] when the tool is far from
-        # them; beyond this margin the tool always meets them before x = a.
-        xs = (self.a, self.b, spec.bin[0])
-        ys = (0.0, belt.width, spec.bin[1])
-        reach = math.hypot(max(xs) - min(xs), max(ys) - min(ys))
-        self.x_lo = self.a - reach * spec.belt_speed / spec.arm_speed
-        self._quad = intercept_quad(spec.arm_speed, spec.belt_speed)
+        self.x_lo = plan.x_lo  # parts upstream of it cannot be met inside [a, b]
+        self._quad = plan.quad
         self.failures = failures
         self.next_failure_at = math.inf
         if failures is not None:

@@ -1,5 +1,6 @@
 """Learning over the twin: the Gymnasium / PettingZoo environments (:mod:`.envs`), HDQN
-training (``train``, ``replay``, ``rollout``, ``rollout_train``), evaluation and run logs.
+training (``train``, ``dqn_update``, ``replay``, ``train_checkpoint``, ``rollout``,
+``rollout_train``), evaluation and run logs.
 
 Training modules need the ``learn`` extra (torch); import the submodules you need.
 """

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pnp_twin.policies.hdqn.agent import Batch
+from pnp_twin.learning.dqn_update import Batch
 
 FIELDS = ("obs", "extra", "action", "reward", "next_obs", "next_extra", "tau", "done")
 

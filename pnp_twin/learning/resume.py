@@ -3,7 +3,7 @@
 A run folder's ``resume/`` holds everything the training loop carries, so that a resumed run
 continues as if it had never stopped and ends with byte-identical weights:
 
-- the agent (:func:`policies.hdqn.checkpoint.save_checkpoint` with the train state: online
+- the agent (:func:`pnp_twin.learning.train_checkpoint.save_checkpoint` with the train state: online
   and target weights, the RMSprop state, torch's RNG state) and its ``meta.json``;
 - ``replay.npz``: the replay buffer (plain arrays);
 - ``loop.npz``: the open transitions (one per agent whose option is running), the team
@@ -32,10 +32,11 @@ import numpy as np
 import torch
 
 from pnp_twin.learning.credit import TeamCredit
+from pnp_twin.learning.dqn_update import DQNAgent
 from pnp_twin.learning.envs.driver import EpochDriver
 from pnp_twin.learning.replay import ReplayBuffer
-from pnp_twin.policies.hdqn.agent import DQNAgent
-from pnp_twin.policies.hdqn.checkpoint import CheckpointError, load_agent, save_checkpoint
+from pnp_twin.learning.train_checkpoint import load_trainer, save_checkpoint
+from pnp_twin.policies.hdqn.checkpoint import CheckpointError
 from pnp_twin.twin.output import atomic_path, write_text
 
 log = logging.getLogger(__name__)
@@ -128,7 +129,7 @@ def load_state(
     folder = resume_folder(run)
     if folder is None:
         raise CheckpointError(f"checkpoint: {run} has no {RESUME}/ state to resume from")
-    agent, _meta = load_agent(folder, device, train_state=True)
+    agent, _meta = load_trainer(folder, device, train_state=True)
     agent.q.train()
     try:
         state = json.loads((folder / "state.json").read_text())

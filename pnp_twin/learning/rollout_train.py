@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from pnp_twin.learning.dqn_update import DQNAgent
 from pnp_twin.learning.envs.driver import EnvError
 from pnp_twin.learning.rollout import Labels, LabelSettings, label_episode
 from pnp_twin.learning.runlog import CsvLog, truncate_log
@@ -42,9 +43,10 @@ from pnp_twin.learning.train import (
     run_name,
     validate,
 )
+from pnp_twin.learning.train_checkpoint import save_checkpoint
 from pnp_twin.parallel import pool_map_ordered
-from pnp_twin.policies.hdqn.agent import AgentConfig, DQNAgent
-from pnp_twin.policies.hdqn.checkpoint import META, save_checkpoint
+from pnp_twin.policies.hdqn.agent import AgentConfig
+from pnp_twin.policies.hdqn.checkpoint import META
 from pnp_twin.policies.hdqn.policy import HDQNPolicy
 from pnp_twin.twin.loader import load_scenario, with_overrides
 from pnp_twin.twin.output import atomic_path

@@ -58,6 +58,7 @@ import numpy as np
 import torch
 
 from pnp_twin.learning.credit import TeamCredit
+from pnp_twin.learning.dqn_update import DQNAgent, linear_epsilon
 from pnp_twin.learning.envs.driver import EnvError, EpochDriver, intrinsic_reward
 from pnp_twin.learning.replay import ReplayBuffer
 from pnp_twin.learning.resume import RESUME, LoopState, load_state, resume_folder, save_state
@@ -70,6 +71,7 @@ from pnp_twin.learning.train_args import (
     safe_name,
     settled,
 )
+from pnp_twin.learning.train_checkpoint import save_checkpoint
 from pnp_twin.learning.validation import (
     VALIDATION_COLUMNS,
     VALIDATION_SEED_BASE,
@@ -79,14 +81,8 @@ from pnp_twin.learning.validation import (
     validation_seeds,
 )
 from pnp_twin.policies.hdqn import TERMINATION
-from pnp_twin.policies.hdqn.agent import (
-    AgentConfig,
-    DQNAgent,
-    decode_joint,
-    linear_epsilon,
-    robot_onehot,
-)
-from pnp_twin.policies.hdqn.checkpoint import META, save_checkpoint
+from pnp_twin.policies.hdqn.agent import AgentConfig, decode_joint, robot_onehot
+from pnp_twin.policies.hdqn.checkpoint import META
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import load_scenario, with_overrides
 from pnp_twin.twin.scenario import Scenario

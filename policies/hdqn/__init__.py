@@ -1,10 +1,12 @@
 """The hierarchical DQN: the meta-controller that picks a dispatching rule per robot.
 
-Modules: ``network`` (Q-network presets), ``replay`` (ring buffer), ``agent`` (the DQN and
-its semi-MDP update), ``checkpoint`` (safetensors + JSON), ``train`` (a training run, top to
-bottom), ``evaluate`` (paired comparison with the rules). The trained policy used like any
-other is :class:`policies.hdqn.policy.HDQNPolicy` (``--policy hdqn:DIR``). Everything here
-needs torch (the ``learn`` extra); import the submodules you need.
+Inference only: ``network`` (Q-network presets), ``agent`` (the online network and its greedy
+action), ``numpy_forward`` (the same network's forward pass in numpy, for decisions),
+``checkpoint`` (reading safetensors + JSON), ``policy`` (the trained policy used like any
+other, :class:`pnp_twin.policies.hdqn.policy.HDQNPolicy`, ``--policy hdqn:DIR``). Training
+(target network, optimizer, semi-MDP update, replay, writing checkpoints) lives in
+:mod:`pnp_twin.learning` (``dqn_update``, ``replay``, ``train_checkpoint``, ``train``).
+Everything here needs torch (the ``learn`` extra); import the submodules you need.
 """
 
 MODES = ("single", "sync", "async")

@@ -1,4 +1,4 @@
-"""The meta-controller: a DQN over dispatching rules with semi-MDP targets.
+"""The meta-controller at inference: its Q-network and the greedy rule choice.
 
 The hierarchy is the paper's: the meta-controller picks an option (a dispatching rule) for a
 free robot; the option's controller then runs it. The controller's only primitive action is
@@ -6,10 +6,11 @@ NooP (wait when there is no candidate), and otherwise it applies the chosen rule
 fixed function of the candidates, so the controller is deterministic and has nothing to
 learn: only the meta-controller is trained.
 
-Options last a variable simulated time ``tau``, so the one-step target is
-``r + gamma ** tau * max_a' Q_target(s', a')`` (``(1 - done)`` masks terminal steps), with
-Double DQN (online argmax, target value) optional. Online and target networks, RMSprop, a
-Huber loss and a linear epsilon schedule, as in the paper and CleanRL's ``dqn.py``.
+This module holds what inference needs: the hyper-parameters a checkpoint records
+(:class:`AgentConfig`), the online network with its greedy action (:class:`QAgent`) and the
+action and input encodings shared with training. Training (the target network, the
+optimizer, the semi-MDP update, epsilon-greedy exploration, the replay buffer and saving
+checkpoints) is on the learning floor: :mod:`pnp_twin.learning.dqn_update`.
 """
 
 from __future__ import annotations
@@ -18,23 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from torch import nn
 
 from pnp_twin.policies.hdqn.network import QNetwork, build_network
-
-
-@dataclass(frozen=True)
-class Batch:
-    """A sampled minibatch, numpy arrays with the batch first."""
-
-    obs: np.ndarray
-    extra: np.ndarray
-    action: np.ndarray
-    reward: np.ndarray
-    next_obs: np.ndarray
-    next_extra: np.ndarray
-    tau: np.ndarray
-    done: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -49,33 +35,8 @@ class AgentConfig:
     target_every: int = 1000  # gradient steps between target-network copies
 
 
-def linear_epsilon(step: int, start: float, end: float, steps: int) -> float:
-    """Epsilon decayed linearly from ``start`` to ``end`` over ``steps``, then held."""
-    if steps <= 0:
-        return end
-    return end + (start - end) * max(0.0, 1.0 - step / steps)
-
-
-def semi_mdp_targets(
-    reward: torch.Tensor,
-    tau: torch.Tensor,
-    done: torch.Tensor,
-    next_q_target: torch.Tensor,
-    gamma: float,
-    next_q_online: torch.Tensor | None = None,
-) -> torch.Tensor:
-    """``r + gamma**tau * (1 - done) * Q_target(s', a*)``; a* = argmax of the target's own
-    values, or of ``next_q_online`` (Double DQN) when given."""
-    if next_q_online is None:
-        best = next_q_target.max(dim=1).values
-    else:
-        a_star = next_q_online.argmax(dim=1, keepdim=True)
-        best = next_q_target.gather(1, a_star).squeeze(1)
-    return reward + torch.pow(gamma, tau) * (1.0 - done) * best
-
-
-class DQNAgent:
-    """Online and target Q-networks, their optimizer, and the update rule."""
+class QAgent:
+    """The online Q-network of a meta-controller and its greedy action."""
 
     def __init__(
         self,
@@ -92,13 +53,7 @@ class DQNAgent:
         self.device = torch.device(device)
         self.q: QNetwork = build_network(config.network, obs_shape, n_actions, n_extra)
         self.q.to(self.device)
-        self.target: QNetwork = build_network(config.network, obs_shape, n_actions, n_extra)
-        self.target.to(self.device)
-        self.target.load_state_dict(self.q.state_dict())
-        self.optimizer = torch.optim.RMSprop(self.q.parameters(), lr=config.lr)
-        self.updates = 0  # gradient steps taken
 
-    # -- acting -----------------------------------------------------------------------------
     def _tensor(self, a: np.ndarray) -> torch.Tensor:
         return torch.as_tensor(a, device=self.device)
 
@@ -112,53 +67,6 @@ class DQNAgent:
     def greedy(self, obs: np.ndarray, extra: np.ndarray | None = None) -> np.ndarray:
         """The greedy action per observation of a batch (ties go to the lowest index)."""
         return self.q_values(obs, extra).argmax(axis=1)
-
-    def act(
-        self,
-        obs: np.ndarray,
-        extra: np.ndarray | None,
-        epsilon: float,
-        rng: np.random.Generator,
-    ) -> np.ndarray:
-        """Epsilon-greedy actions for a batch; the exploration draws come from ``rng``."""
-        actions = self.greedy(obs, extra)
-        explore = rng.random(len(actions)) < epsilon
-        if explore.any():
-            actions[explore] = rng.integers(0, self.n_actions, size=int(explore.sum()))
-        return actions
-
-    # -- learning ---------------------------------------------------------------------------
-    def update(self, batch: Batch) -> float:
-        """One gradient step on a minibatch; returns the TD (Huber) loss."""
-        t = self._tensor
-        obs, next_obs = t(batch.obs), t(batch.next_obs)
-        extra = t(batch.extra) if self.n_extra else None
-        next_extra = t(batch.next_extra) if self.n_extra else None
-        with torch.no_grad():
-            next_target = self.target(next_obs, next_extra)
-            next_online = self.q(next_obs, next_extra) if self.config.double else None
-            y = semi_mdp_targets(
-                t(batch.reward),
-                t(batch.tau),
-                t(batch.done),
-                next_target,
-                self.config.gamma,
-                next_online,
-            )
-        q = self.q(obs, extra).gather(1, t(batch.action).unsqueeze(1)).squeeze(1)
-        loss = nn.functional.smooth_l1_loss(q, y)
-        self.optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        nn.utils.clip_grad_norm_(self.q.parameters(), self.config.grad_clip)
-        self.optimizer.step()
-        self.updates += 1
-        if self.updates % self.config.target_every == 0:
-            self.sync_target()
-        return float(loss.item())
-
-    def sync_target(self) -> None:
-        """Copy the online weights into the target network."""
-        self.target.load_state_dict(self.q.state_dict())
 
 
 # -- action and input encodings shared by training and inference -----------------------------

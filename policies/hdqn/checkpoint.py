@@ -8,9 +8,10 @@ A checkpoint folder holds
 - ``meta.json``: what the weights mean (scenario, mode, network preset, rules, observation
   shape, agent config), package versions, step counters and the numpy RNG state.
 
-Every file is written to a temporary name in the same folder and moved into place with
-``os.replace``; ``meta.json`` goes last, so a folder whose meta exists is complete. Loading
-reads tensors with safetensors and JSON with ``json``: no code is ever unpickled.
+Training writes checkpoints (:mod:`pnp_twin.learning.train_checkpoint`): every file to a
+temporary name in the same folder, moved into place with ``os.replace``; ``meta.json`` goes
+last, so a folder whose meta exists is complete. This module reads them for inference: tensors
+with safetensors and JSON with ``json``; no code is ever unpickled.
 
 Nothing is used before it is checked: ``meta.json`` is validated against :class:`Meta` (a
 pydantic schema: known keys only, types, bounds, a valid scenario, known rules, consistent
@@ -24,26 +25,24 @@ from __future__ import annotations
 import json
 import logging
 import math
-from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
 import torch
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
-from safetensors.torch import load_file, save
+from safetensors.torch import load_file
 
 from pnp_twin.policies.hdqn import MODES
-from pnp_twin.policies.hdqn.agent import AgentConfig, DQNAgent
+from pnp_twin.policies.hdqn.agent import AgentConfig, QAgent
 from pnp_twin.policies.hdqn.network import PRESETS
 from pnp_twin.policies.registry import rule_names
-from pnp_twin.twin.errors import UserError
-from pnp_twin.twin.output import atomic_path, write_text
-from pnp_twin.twin.output import versions as package_versions
+from pnp_twin.twin.errors import UserError, file_kind
 from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 _WARNED: set[tuple[Any, ...]] = set()
+A = TypeVar("A", bound=QAgent)
 
 FORMAT = 1
 MODEL = "model.safetensors"
@@ -142,7 +141,11 @@ class Meta(_Strict):
                 f"robots in {self.mode} mode (expected {want})"
             )
         if self.n_extra not in (0, self.n_robots):
-            raise ValueError(f"n_extra: {self.n_extra} must be 0 or n_robots ({self.n_robots})")
+            raise ValueError(
+                f"n_extra: {self.n_extra} does not match n_robots = {self.n_robots} (its network "
+                f"takes extra inputs of {self.n_extra} robots; allowed 0 or {self.n_robots}); "
+                "meta.json was changed or does not belong to these weights: restore it or retrain"
+            )
         return self
 
 
@@ -195,6 +198,9 @@ def check_weights(
 
 def read_tensors(path: Path, device: str = "cpu") -> dict[str, torch.Tensor]:
     """The tensors of a safetensors file, or one CheckpointError line (missing, truncated)."""
+    kind = file_kind(path)
+    if kind is not None:
+        raise CheckpointError(f"checkpoint: {path} is {kind}, not a safetensors file")
     if not path.is_file():
         raise CheckpointError(f"checkpoint: {path} is missing")
     try:
@@ -228,60 +234,6 @@ def warn_if_other_line(meta: dict[str, Any], belt: Any, robots: list[Any], where
             trained.get("name", "?"),
             ", ".join(diffs),
         )
-
-
-def versions() -> dict[str, str]:
-    """Versions of what produced the weights."""
-    return package_versions("pnp-twin", "torch", "numpy")
-
-
-def _atomic_json(path: Path, data: dict[str, Any]) -> None:
-    write_text(json.dumps(data, indent=2, sort_keys=True) + "\n", path)
-
-
-def _atomic_tensors(path: Path, tensors: dict[str, torch.Tensor]) -> None:
-    with atomic_path(path) as tmp:
-        # bytes written into the prepared file keep its usual permissions (save_file's are 0600)
-        tmp.write_bytes(save({k: v.detach().cpu().contiguous() for k, v in tensors.items()}))
-
-
-def save_checkpoint(
-    folder: Path,
-    agent: DQNAgent,
-    meta: dict[str, Any],
-    train_state: bool = True,
-) -> Path:
-    """Write the agent (and, with ``train_state``, what resuming needs) into ``folder``.
-
-    ``meta`` carries the caller's description (scenario, mode, rules, counters, RNG state);
-    the agent's shapes, config and the package versions are added here.
-    """
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    _atomic_tensors(folder / MODEL, {f"q.{k}": v for k, v in agent.q.state_dict().items()})
-    opt = agent.optimizer.state_dict()
-    if train_state:
-        tensors = {f"target.{k}": v for k, v in agent.target.state_dict().items()}
-        for idx, state in opt["state"].items():
-            for key, value in state.items():
-                tensors[f"opt.{idx}.{key}"] = torch.as_tensor(value)
-        tensors["rng.torch"] = torch.get_rng_state()
-        _atomic_tensors(folder / STATE, tensors)
-    full = {
-        **meta,
-        "format": FORMAT,
-        "obs_shape": list(agent.obs_shape),
-        "n_actions": agent.n_actions,
-        "n_extra": agent.n_extra,
-        "agent": asdict(agent.config),
-        "updates": agent.updates,
-        "optimizer_groups": [
-            {k: v for k, v in g.items() if k != "params"} for g in opt["param_groups"]
-        ],
-        "versions": versions(),
-    }
-    _atomic_json(folder / META, full)
-    return folder
 
 
 def shipped_models() -> list[str]:
@@ -339,48 +291,27 @@ def read_meta(folder: str | Path) -> dict[str, Any]:
     return check_meta(data, str(path / META))
 
 
-def load_agent(
-    folder: str | Path, device: str | torch.device = "cpu", train_state: bool = False
-) -> tuple[DQNAgent, dict[str, Any]]:
-    """Rebuild the agent of a checkpoint; with ``train_state`` also the target, optimizer
-    and torch RNG (to resume training)."""
+def load_into(
+    cls: type[A], folder: str | Path, device: str | torch.device = "cpu"
+) -> tuple[A, dict[str, Any]]:
+    """An agent of class ``cls`` (:class:`QAgent` or a subclass) built as the checkpoint's
+    metadata describes, with its online network's weights, checked, and in eval mode."""
     path = resolve(folder)
     meta = read_meta(path)
     config = AgentConfig(**meta["agent"])
     shape = tuple(meta["obs_shape"])
-    agent = DQNAgent(config, shape, meta["n_actions"], meta["n_extra"], device)  # type: ignore[arg-type]
+    agent = cls(config, shape, meta["n_actions"], meta["n_extra"], device)  # type: ignore[arg-type]
     weights = read_tensors(path / MODEL, str(agent.device))
     expected = {f"q.{k}": v for k, v in agent.q.state_dict().items()}
     check_weights(weights, expected, str(path / MODEL))
     agent.q.load_state_dict({k[2:]: v for k, v in weights.items()})
-    agent.target.load_state_dict(agent.q.state_dict())
-    agent.updates = int(meta.get("updates", 0))
-    if train_state:
-        _load_train_state(path, agent, meta)
     agent.q.eval()
     return agent, meta
 
 
-def _load_train_state(path: Path, agent: DQNAgent, meta: dict[str, Any]) -> None:
-    if not (path / STATE).is_file():
-        raise CheckpointError(f"checkpoint: {path / STATE} is missing; cannot resume")
-    tensors = read_tensors(path / STATE)
-    target = {f"target.{k}": v for k, v in agent.target.state_dict().items()}
-    check_weights(
-        {k: v for k, v in tensors.items() if k.startswith("target.")}, target, str(path / STATE)
-    )
-    agent.target.load_state_dict(
-        {k[7:]: v.to(agent.device) for k, v in tensors.items() if k.startswith("target.")}
-    )
-    state: dict[int, dict[str, torch.Tensor]] = {}
-    for key, value in tensors.items():
-        if key.startswith("opt."):
-            _, idx, name = key.split(".", 2)
-            if name != "step":
-                value = value.to(agent.device)
-            state.setdefault(int(idx), {})[name] = value
-    groups = agent.optimizer.state_dict()["param_groups"]
-    for group, saved in zip(groups, meta["optimizer_groups"], strict=True):
-        group.update(saved)
-    agent.optimizer.load_state_dict({"state": state, "param_groups": groups})
-    torch.set_rng_state(tensors["rng.torch"])
+def load_agent(
+    folder: str | Path, device: str | torch.device = "cpu"
+) -> tuple[QAgent, dict[str, Any]]:
+    """The trained meta-controller of a checkpoint, for inference (resuming training is
+    :func:`pnp_twin.learning.train_checkpoint.load_trainer`)."""
+    return load_into(QAgent, folder, device)

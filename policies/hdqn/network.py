@@ -67,7 +67,7 @@ def compact(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -
 
     No convolution: on a CPU the convolutions' backward pass costs about 4x the whole
     update of this network (measured on the 2-core box), and a robot's window is only
-    8 x 14 cells.
+    8 x 7 cells on paper_baseline.
     """
     return QNetwork(obs_shape, n_actions, n_extra, [], (128, 128))
 

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from pnp_twin.policies.base import RuleChoosingPolicy
-from pnp_twin.policies.hdqn.agent import DQNAgent, decode_joint, robot_onehot
+from pnp_twin.policies.hdqn.agent import QAgent, decode_joint, robot_onehot
 from pnp_twin.policies.hdqn.checkpoint import (
     META,
     CheckpointError,
@@ -24,6 +24,7 @@ from pnp_twin.policies.hdqn.checkpoint import (
     resolve,
     warn_if_other_line,
 )
+from pnp_twin.policies.hdqn.numpy_forward import NumpyQ, Unsupported
 from pnp_twin.twin.belt import Belt
 from pnp_twin.twin.camera import BeltCamera
 from pnp_twin.twin.decision import Decision, RobotSpec
@@ -60,9 +61,14 @@ class HDQNPolicy(RuleChoosingPolicy):
     workspace window plus its one-hot index (or, trained with ``view = "belt"``, the whole
     belt plus the one-hot); a ``single`` agent sees the whole belt and picks a joint action,
     of which the deciding robot uses its own component.
+
+    Decisions run the network's forward pass in numpy (:class:`NumpyQ`, the weights copied
+    from the agent when a run starts) and take torch's greedy action, proven so; a near tie
+    between two actions' values, a network on another device, or ``numpy_forward=False``
+    asks torch.
     """
 
-    def __init__(self, agent: DQNAgent, meta: dict[str, Any]) -> None:
+    def __init__(self, agent: QAgent, meta: dict[str, Any], numpy_forward: bool = True) -> None:
         super().__init__()
         self.agent = agent
         self.meta = meta
@@ -75,6 +81,9 @@ class HDQNPolicy(RuleChoosingPolicy):
         self.name = meta.get("name", f"hdqn-{self.mode}")
         self.camera: BeltCamera | None = None
         self._decisions = 0  # a fresh image per decision (claims change between them)
+        self.numpy_forward = numpy_forward
+        self._numpy: NumpyQ | None = None
+        self.torch_decisions = 0  # decisions torch ranked (near ties, or no numpy forward)
 
     @classmethod
     def load(cls, folder: str | Path, device: str = "cpu") -> HDQNPolicy:
@@ -96,6 +105,7 @@ class HDQNPolicy(RuleChoosingPolicy):
 
     def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
         super().reset(robots, rng)
+        self._numpy = self._numpy_q()
         n = int(self.meta["n_robots"])
         if len(robots) != n:
             raise CheckpointError(
@@ -132,9 +142,22 @@ class HDQNPolicy(RuleChoosingPolicy):
             obs = camera.window(robot, now, free, self._decisions)[None]
         return obs, robot_onehot([robot], len(self.robots))
 
+    def _numpy_q(self) -> NumpyQ | None:
+        """The numpy forward of the agent's current weights, when it can stand in for torch
+        (a CPU network of supported layers)."""
+        if not self.numpy_forward or self.agent.device.type != "cpu":
+            return None
+        try:
+            return NumpyQ(self.agent.q)
+        except Unsupported:
+            return None
+
     def select_rule(self, decision: Decision) -> str:
         obs, extra = self.observe(decision)
-        action = int(self.agent.greedy(obs, extra)[0])
+        action = None if self._numpy is None else self._numpy.greedy(obs, extra)
+        if action is None:
+            self.torch_decisions += 1
+            action = int(self.agent.greedy(obs, extra)[0])
         if self.mode == "single":
             action = decode_joint(action, len(self.robots), len(self.rules))[decision.robot]
         return self.rules[action]

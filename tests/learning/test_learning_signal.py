@@ -1,6 +1,6 @@
-"""Tests a broken learner would fail: the weights move, the loss falls, the trained policy is
-at least as good as the worst single rule on the same seed, and the shipped models'
-evaluation rows reproduce exactly."""
+"""Tests a broken learner would fail: the weights move, the loss falls, the shipped trained
+policy beats the best single rule (paired over seeds), and the shipped models' evaluation
+rows reproduce exactly."""
 
 from __future__ import annotations
 
@@ -14,8 +14,10 @@ import pytest
 torch = pytest.importorskip("torch")
 pytest.importorskip("safetensors")
 
+from pnp_twin.learning.dqn_update import DQNAgent  # noqa: E402
 from pnp_twin.learning.train import TrainArgs, train  # noqa: E402
-from pnp_twin.policies.hdqn.agent import AgentConfig, DQNAgent  # noqa: E402
+from pnp_twin.learning.train_checkpoint import load_trainer  # noqa: E402
+from pnp_twin.policies.hdqn.agent import AgentConfig  # noqa: E402
 from pnp_twin.policies.hdqn.checkpoint import load_agent  # noqa: E402
 from pnp_twin.policies.hdqn.policy import HDQNPolicy  # noqa: E402
 from pnp_twin.policies.registry import make_policy  # noqa: E402
@@ -74,7 +76,7 @@ def test_the_td_loss_falls_on_the_runs_own_experience(run):
     with (run / "log.csv").open() as f:
         logged = [float(r["loss"]) for r in csv.DictReader(f) if r["loss"] != "nan"]
     assert len(logged) >= 20 and np.isfinite(logged).all()
-    agent, _meta = load_agent(run / "resume", train_state=True)
+    agent, _meta = load_trainer(run / "resume", train_state=True)
     agent.config = replace(agent.config, target_every=10**9)
     replay = ReplayBuffer(3000, (1, 8, 7), 2)
     replay.load(run / "resume" / "replay.npz")
@@ -86,14 +88,27 @@ def test_the_td_loss_falls_on_the_runs_own_experience(run):
     assert losses[-1] < 0.5 * losses[0]
 
 
-def test_the_trained_policy_is_at_least_as_good_as_the_worst_rule(run):
-    scenario = with_overrides(
-        load_scenario("paper_baseline", TINY), {"duration": 60.0, "warmup": 5.0}
-    )
-    for seed in (0, 1):
-        g = simulate(scenario, HDQNPolicy.load(run), seed=seed).kpis["gripping_rate"]
-        rules = [simulate(scenario, make_policy(r), seed=seed).kpis["gripping_rate"] for r in RULES]
-        assert g >= min(rules), (seed, g, rules)
+def test_the_shipped_policy_beats_the_best_rule_paired():
+    """The shipped model the README recommends (async, rollout labels) on the baseline line
+    grips more than the best of the six rules, paired over 8 seeds (common random numbers):
+    the 95 % CI of the difference lies above zero. Its 600 s evaluation says +0.41 points
+    over SD on 20 seeds, 19 of them ahead; on these 120 s runs it is about +0.43 ± 0.10."""
+    from scipy import stats
+
+    scenario = with_overrides(load_scenario("paper_baseline"), {"duration": 120.0, "warmup": 20.0})
+    policy = HDQNPolicy.load(ROOT / "models" / "paper_baseline__async_rollout")
+    seeds = range(8)
+
+    def grips(rule: str | None) -> np.ndarray:  # None: the trained policy
+        chosen = policy if rule is None else make_policy(rule)
+        return np.array([simulate(scenario, chosen, seed=s).kpis["gripping_rate"] for s in seeds])
+
+    g = grips(None)
+    rules = {r: grips(r) for r in RULES}
+    best = max(rules, key=lambda r: float(rules[r].mean()))
+    diff = g - rules[best]
+    half = stats.t.ppf(0.975, len(diff) - 1) * diff.std(ddof=1) / np.sqrt(len(diff))
+    assert diff.mean() - half > 0, (best, diff.mean(), half, g, rules[best])
 
 
 def _first_rows(model: str) -> list[dict[str, str]]:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from pnp_twin.studies.journal import REPLACED, Journal, changed_text, differences
+from pnp_twin.studies.journal import REPLACED, Journal, changed_text, differences, journaled
 from pnp_twin.studies.lock import FolderBusy
 from pnp_twin.studies.plan import StudyError, build_plan
 from pnp_twin.twin import load_scenario, with_overrides
@@ -63,8 +63,84 @@ def test_a_row_reads_back_exactly_nan_included(plan, tmp_path):
     j.close()
 
 
+def segments(folder: Path) -> list[Path]:
+    return sorted((folder / "runs").glob("*.jsonl"))
+
+
+def test_rows_are_written_in_fsynced_batches_of_json_lines(plan, tmp_path, monkeypatch):
+    import pnp_twin.studies.journal as journal
+
+    synced: list[int] = []
+    real = os.fsync
+    monkeypatch.setattr(journal.os, "fsync", lambda fd: (synced.append(fd), real(fd)))
+    j = opened(tmp_path, plan)
+    specs = plan.specs()
+    for spec in specs[:3]:
+        j.record(fake_row(spec))
+    assert synced == [] and journaled(tmp_path / "runs") == set()  # buffered: one batch
+    assert j.load(specs[0]) is not None  # a buffered row reads back already
+    j.rows(specs)  # the tables are built from rows on disk: the batch is written first
+    assert len(synced) >= 1 and journaled(tmp_path / "runs") == {s.run_id for s in specs[:3]}
+    (segment,) = segments(tmp_path)
+    assert segment.name == "000001.jsonl" and len(segment.read_text().splitlines()) == 3
+    j.record(fake_row(specs[3]))
+    j.close()  # closing writes what is buffered
+    j = opened(tmp_path, plan)  # a new session appends to a segment of its own
+    assert all(j.load(s) is not None for s in specs)
+    j.record(fake_row(specs[0], wall_time=0.5))
+    j.close()
+    assert [p.name for p in segments(tmp_path)] == ["000001.jsonl", "000002.jsonl"]
+    j = opened(tmp_path, plan)
+    assert j.load(specs[0])["wall_time"] == 0.5  # the later line wins
+    j.close()
+
+
+def test_a_batch_is_written_after_half_a_second(plan, tmp_path, monkeypatch):
+    import pnp_twin.studies.journal as journal
+
+    clock = [100.0]
+    monkeypatch.setattr(journal.time, "monotonic", lambda: clock[0])
+    j = opened(tmp_path, plan)
+    specs = plan.specs()
+    j.record(fake_row(specs[0]))
+    clock[0] += 0.2
+    j.record(fake_row(specs[1]))
+    assert journaled(tmp_path / "runs") == set()
+    clock[0] += journal.FLUSH_SECONDS
+    j.record(fake_row(specs[2]))
+    assert journaled(tmp_path / "runs") == {s.run_id for s in specs[:3]}
+    j.close()
+
+
+def test_a_line_cut_short_by_a_kill_is_dropped_and_its_run_done_again(plan, tmp_path, caplog):
+    j = opened(tmp_path, plan)
+    specs = plan.specs()
+    for spec in specs[:3]:
+        j.record(fake_row(spec))
+    j.close()
+    (segment,) = segments(tmp_path)
+    text = segment.read_bytes()
+    lines = text.splitlines(keepends=True)
+    segment.write_bytes(lines[0] + b"{garbage\n" + lines[1] + lines[2][:40])  # killed mid-write
+    with caplog.at_level(logging.WARNING):
+        j = opened(tmp_path, plan)
+        found = j.rows(specs)
+    assert [r is not None for r in found] == [True, True, False, False]
+    assert (
+        "line 4" in caplog.text and "cut short" in caplog.text and "running it again" in caplog.text
+    )
+    assert "line 2" in caplog.text  # the garbage line, dropped too
+    assert segment.read_bytes() == lines[0] + lines[1]  # the damaged lines are gone for good
+    j.record(fake_row(specs[2]))
+    j.close()
+    j = opened(tmp_path, plan)
+    assert [r is not None for r in j.rows(specs)] == [True, True, True, False]
+    j.close()
+
+
 @pytest.mark.parametrize("text", ["", '{"run_id": "p000-SD-r00", "point": 0, "gri', "\xff\xfe"])
 def test_a_truncated_or_empty_run_is_run_again(plan, tmp_path, caplog, text):
+    """A run file of a folder journaled before segments (one JSON file per run)."""
     j = opened(tmp_path, plan)
     spec = plan.specs()[0]
     path = tmp_path / "runs" / f"{spec.run_id}.json"
@@ -97,8 +173,12 @@ def test_an_edited_run_is_refused_naming_file_and_field(plan, tmp_path, change, 
     with pytest.raises(StudyError) as e:
         j.load(spec)
     message = str(e.value)
-    assert f"{spec.run_id}.json" in message and needle in message
-    assert "delete the file to run it again" in message and "\n" not in message
+    assert f"000001.jsonl line 1 (run {spec.run_id})" in message and needle in message
+    assert "delete that line to run it again" in message and "\n" not in message
+    j.close()
+    j = opened(tmp_path, plan)  # from disk, in a later session, alike
+    with pytest.raises(StudyError, match="000001.jsonl line 1 .*delete that line"):
+        j.load(spec)
     j.close()
 
 
@@ -106,7 +186,13 @@ def test_a_row_that_is_not_an_object_is_refused(plan, tmp_path):
     j = opened(tmp_path, plan)
     spec = plan.specs()[0]
     (tmp_path / "runs" / f"{spec.run_id}.json").write_text("[1, 2]")
-    with pytest.raises(StudyError, match="holds list, not a run's row"):
+    with pytest.raises(StudyError, match="holds list, not a run's row; delete the file"):
+        j.load(spec)
+    j.close()
+    (tmp_path / "runs" / f"{spec.run_id}.json").unlink()
+    (tmp_path / "runs" / "000001.jsonl").write_text('{"run_id": "p000-SD-r00"}\n[1, 2]\n')
+    j = opened(tmp_path, plan)
+    with pytest.raises(StudyError, match=r"000001.jsonl line 2: holds list, not a run's row"):
         j.load(spec)
     j.close()
 

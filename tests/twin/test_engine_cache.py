@@ -10,6 +10,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -27,7 +28,7 @@ def test_the_fingerprint_covers_every_engine_source(
     monkeypatch.setattr(jit, "ENGINE", copy)
     before = jit.fingerprint()
     assert before == jit.fingerprint()
-    for name in ("mathlib.py", "kernel.py", "vector.py"):
+    for name in ("mathlib.py", "kernel.py", "gateway.py", "robot.py"):
         path = copy / name
         text = path.read_text()
         path.write_text(text + "\n# changed\n")
@@ -50,13 +51,21 @@ def test_compiled_code_is_cached_under_the_fingerprint(tmp_path: Path) -> None:
     ours.mkdir(parents=True)
     (ours / jit.OWNER).write_text(f"{jit.ENGINE}\n")
     (ours / "folders.txt").write_text("")
+    recent = root / "00000000000000aa"  # ours too, but written to a minute ago: kept
+    recent.mkdir()
+    (recent / jit.OWNER).write_text(f"{jit.ENGINE}\n")
+    (recent / "folders.txt").write_text("")
+    hour_ago = time.time() - 3600
+    os.utime(ours, (hour_ago, hour_ago))
+    os.utime(recent, (time.time() - 60, time.time() - 60))
     theirs = root / "fedcba9876543210"  # another checkout's, sharing the cache folder
     theirs.mkdir()
     (theirs / jit.OWNER).write_text("/elsewhere/pnp_twin/twin/fast\n")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
     subprocess.run([sys.executable, "-c", RUN], env=env, cwd=ROOT, check=True)
     folders = sorted(p.name for p in root.iterdir())
-    assert folders == sorted([jit.fingerprint(), theirs.name])  # ours replaced, theirs kept
+    # our stale folder replaced; another checkout's, and ours still in use, kept
+    assert folders == sorted([jit.fingerprint(), theirs.name, recent.name])
     assert list((root / jit.fingerprint()).rglob("*.nbi"))
     assert (root / jit.fingerprint() / jit.OWNER).read_text().strip() == str(jit.ENGINE)
 

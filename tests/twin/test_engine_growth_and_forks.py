@@ -47,8 +47,10 @@ class _First:
         return 0
 
 
-def test_a_span_buffer_restart_does_not_replay_a_python_policy() -> None:
-    """Frequent short breakdowns and few parts overflow the first span buffer guess; the
+def test_a_span_buffer_restart_does_not_replay_a_python_policy(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Frequent short breakdowns and few parts overflow a small first span buffer guess; the
     buffer grows in place, so the Python policy is asked each decision once, as in SimPy."""
     sc = load_scenario(
         "breakdowns",
@@ -57,10 +59,12 @@ def test_a_span_buffer_restart_does_not_replay_a_python_policy() -> None:
             "duration": 20.0,
             "warmup": 0.0,
             "feeder.rate": 0.5,
-            "robots.mtbf": 0.05,
+            "robots.mtbf": 1.0,  # the lowest the scenario allows
             "robots.mttr": 0.01,
         },
     )
+    rooms = FastLine._rooms
+    monkeypatch.setattr(FastLine, "_rooms", lambda self: (16, *rooms(self)[1:]))
     a_policy, b_policy = _Warmup(), _Warmup()
     a = simulate(sc, a_policy, seed=3, engine="simpy")
     b = simulate(sc, b_policy, seed=3, engine="fast")

@@ -12,13 +12,16 @@ the policy gets the SimPy gateway's own :class:`~twin.decision.Decision` (and, t
 
 Modules: :mod:`~twin.fast.mathlib` (CPython's float operations, bit for bit),
 :mod:`~twin.fast.layout` (state array columns), :mod:`~twin.fast.kernel` (the event loop),
+:mod:`~twin.fast.calendar` (its event calendar), :mod:`~twin.fast.robot` and
+:mod:`~twin.fast.gateway` (the robot's steps, the gateway's epochs),
+:mod:`~twin.fast.tally` (the KPIs' sums in one compiled pass),
 :mod:`~twin.fast.engine` (:class:`FastLine`: a run as arrays; ``start``/``advance``/``fork``
 copy a run at any instant; ``kpi_records`` hands its arrays to :mod:`twin.kpis`),
 :mod:`~twin.fast.belt_view` (the belt as attached policies read it),
 :mod:`~twin.fast.run` (the RunResult), :mod:`~twin.fast.rollouts` (every choice x sampled
 future continued from a forked decision in one compiled call: rollout labelling),
-:mod:`~twin.fast.batch` and :mod:`~twin.fast.vector` (many lines in hold mode stepped in one
-compiled call on numba's threads: the vector environment).
+the vector environment's engine (many lines in hold mode stepped in one compiled call over
+this kernel) lives on the learning floor, :mod:`pnp_twin.learning.vector`.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from pnp_twin.twin.decision import Policy
-    from pnp_twin.twin.run import RunResult
+    from pnp_twin.twin.result import RunResult
     from pnp_twin.twin.scenario import Scenario
 
 from pnp_twin.twin.errors import UserError
@@ -63,7 +66,9 @@ def prepare() -> None:
     from pnp_twin.twin.fast.engine import FastLine
     from pnp_twin.twin.scenario import Scenario
 
-    FastLine(Scenario(duration=1.0, warmup=0.0), rules=["SIRO"]).run()
+    line = FastLine(Scenario(duration=1.0, warmup=0.0), rules=["SIRO"])
+    line.run()
+    line.kpis(0.0)  # the KPIs' compiled pass too
 
 
 def __getattr__(name: str) -> Any:

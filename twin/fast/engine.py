@@ -1,14 +1,17 @@
 """A line as arrays: the scenario, streams and policy turned into the kernel's inputs.
 
-:class:`FastLine` mirrors :class:`twin.line.Line`: the same seed split (feeder arrivals,
-lateral positions, policy, one stream per robot), the same feeder stream, the same derived
-constants (computed here in Python with the twin's own expressions, so they are the same
-doubles). Random draws the SimPy run makes during the run are pre-drawn: SIRO's
+:class:`FastLine` mirrors :class:`twin.line.Line`: both read the run's
+:class:`~twin.plan.LinePlan` (the seed split, the derived constants: the same doubles), and
+the same feeder stream. A stream's generator is built only where the run uses it (the
+policy's for a rule mix or SIRO, a robot's when it breaks down exponentially), and copied
+only for SIRO. Random draws the SimPy run makes during the run are pre-drawn: SIRO's
 ``Generator.integers`` as the policy stream's raw ``next_uint32`` outputs (the kernel
 replays numpy's Lemire rejection), breakdowns as standard exponentials (``exponential(m)``
 is ``m * standard_exponential()``). Before an event that could run out of a stream or of
 the span buffer, the kernel stops (ST_ROOM) and the line grows it in place (streams draw on
-from their generators) and carries on, so the result never depends on the first guess.
+from their generators) and carries on, so the result never depends on the first guess: the
+guesses are sized from the run (about a span per part, and the robots' NooPs while the line
+drains), not for the worst case.
 
 A policy that is a Python object (the learned HDQN, any ``choose``) runs through a callback:
 its robots carry the rule code EXTERNAL, the kernel stops at each of their decisions
@@ -27,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from pnp_twin.twin.decision import Decision, Policy, RobotSpec, fixed_rules
+from pnp_twin.twin.decision import Decision, Policy, fixed_rules
 from pnp_twin.twin.fast import layout as L
 from pnp_twin.twin.fast.belt_view import BeltView
 from pnp_twin.twin.fast.kernel import (
@@ -38,8 +41,8 @@ from pnp_twin.twin.fast.kernel import (
     start_robots,
 )
 from pnp_twin.twin.feeder import Feeder
-from pnp_twin.twin.kpis import SPAN_STATES, PartRecords, SpanRecords
-from pnp_twin.twin.line import DRAIN_SLACK, robot_specs
+from pnp_twin.twin.kpis import SPAN_STATES, PartRecords, SpanRecords, tally_kpis
+from pnp_twin.twin.plan import ARRIVALS, FIRST_ROBOT, LATERAL, POLICY, LinePlan
 from pnp_twin.twin.records import Recorder
 from pnp_twin.twin.scenario import Scenario
 
@@ -58,30 +61,22 @@ def rule_codes(policy: Policy, n_robots: int) -> list[int] | None:
     return [L.RULE_NAMES.index(r) for r in rules]
 
 
-def _robot_params(scenario: Scenario, specs: list[RobotSpec]) -> tuple[np.ndarray, np.ndarray]:
-    fp = np.zeros((len(specs), L.N_FP))
-    ip = np.zeros((len(specs), L.N_IP), dtype=np.int64)
-    width = scenario.belt.width
-    for spec in specs:
-        r = spec.index
-        a, b = spec.workspace
-        # as Robot.__init__ computes them
-        xs = (a, b, spec.bin[0])
-        ys = (0.0, width, spec.bin[1])
-        reach = math.hypot(max(xs) - min(xs), max(ys) - min(ys))
-        fp[r, L.BA], fp[r, L.BB] = a, b
-        fp[r, L.XLO] = a - reach * spec.belt_speed / spec.arm_speed
-        fp[r, L.QUAD] = spec.arm_speed**2 - spec.belt_speed**2
+def _robot_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's robot parameters: the plan's robots as rows of arrays."""
+    fp = np.zeros((len(plan.robots), L.N_FP))
+    ip = np.zeros((len(plan.robots), L.N_IP), dtype=np.int64)
+    for r, rp in enumerate(plan.robots):
+        spec = rp.spec
+        fp[r, L.BA], fp[r, L.BB] = spec.workspace
+        fp[r, L.XLO] = rp.x_lo
+        fp[r, L.QUAD] = rp.quad
         fp[r, L.VR], fp[r, L.ACC] = spec.arm_speed, spec.acceleration
         fp[r, L.PICK], fp[r, L.PLACE] = spec.pick_time, spec.place_time
         fp[r, L.BX], fp[r, L.BY] = spec.bin
-        fp[r, L.BASEX], fp[r, L.BASEY] = (a + b) / 2.0, width / 2.0
-        mtbf = scenario.robot_param(r + 1, "mtbf")
-        mttr = scenario.robot_param(r + 1, "mttr")
-        fp[r, L.MTBF], fp[r, L.MTTR] = mtbf, mttr
-        if mtbf > 0:
-            fixed = scenario.robots.failure_distribution == "fixed"
-            ip[r, L.FAILMODE] = L.FIXED if fixed else L.EXPONENTIAL
+        fp[r, L.BASEX], fp[r, L.BASEY] = rp.base
+        fp[r, L.MTBF], fp[r, L.MTTR] = rp.mtbf, rp.mttr
+        if rp.breaks:
+            ip[r, L.FAILMODE] = L.FIXED if rp.failures == "fixed" else L.EXPONENTIAL
     return fp, ip
 
 
@@ -91,6 +86,13 @@ STATE = (
 )  # fmt: skip
 """The arrays a run changes as it goes (``ip``'s rule codes in hold mode; the rest is
 parameters and pre-drawn streams, which only grow by new arrays)."""
+
+
+def _longer(a: np.ndarray, rows: int) -> np.ndarray:
+    """A copy of ``a`` with ``rows`` rows, the new ones zero."""
+    out = np.zeros((rows, *a.shape[1:]), dtype=a.dtype)
+    out[: len(a)] = a
+    return out
 
 
 class FastLine:
@@ -113,25 +115,29 @@ class FastLine:
         at each :meth:`start`). Or give ``rules`` (one name, or one per robot) and no policy.
         ``hold`` pauses at every decision epoch (see :meth:`release`)."""
         self.scenario = scenario
-        self.seed = scenario.seed if seed is None else seed
-        self.duration = scenario.duration if duration is None else duration
-        n = scenario.robots.count
-        children = np.random.SeedSequence(self.seed).spawn(3 + n)
-        streams = [np.random.default_rng(s) for s in children]
+        self.plan = plan = LinePlan.of(scenario, seed, duration)
+        self.seed = plan.seed
+        self.duration = plan.duration
+        n = len(plan.robots)
+        seeds = plan.seeds()  # generators are built only for the streams this run uses
         b = scenario.belt
-        feeder = Feeder(scenario.feeder, b.width, streams[0], streams[1], scenario.source_dir)
+        arrivals, lateral = plan.stream(seeds, ARRIVALS), plan.stream(seeds, LATERAL)
+        feeder = Feeder(scenario.feeder, b.width, arrivals, lateral, scenario.source_dir)
         self.fed, self.y, self.kind = feeder.stream(self.duration)
         self.fed = np.ascontiguousarray(self.fed, dtype=np.float64)
         self.y = np.ascontiguousarray(self.y, dtype=np.float64)
-        self.specs = robot_specs(scenario)
+        self.specs = plan.specs
         self.external: Policy | None = None
-        self._policy_seed = children[2]
+        self._seeds = seeds
+        self._policy_seed = seeds[POLICY]
         self.extra_rules: list[str] = []  # rule names of external choices beyond RULE_NAMES
         self.extra_counts: Counter[tuple[int, str]] = Counter()
+        self.policy_rng: np.random.Generator | None = None
         if policy is not None:
             codes = None
             if hasattr(policy, "fixed_rules"):
-                policy.reset(self.specs, streams[2])  # as Line resets it (a mix of one widens)
+                self.policy_rng = plan.stream(seeds, POLICY)
+                policy.reset(self.specs, self.policy_rng)  # as Line resets it
                 codes = rule_codes(policy, n)
             if codes is None:
                 self.external = policy
@@ -146,42 +152,48 @@ class FastLine:
                 )
             codes = [L.RULE_NAMES.index(r) for r in (names * n if len(names) == 1 else names)]
         self.policy = policy
-        self.policy_rng = streams[2]
-        self.failure_rngs = streams[3:]
-        self.fp, self.ip = _robot_params(scenario, self.specs)
+        self.fp, self.ip = _robot_params(plan)
         self.ip[:, L.RULE] = codes
         self.gp = np.zeros(L.N_GP)
         self.gp[L.V] = b.speed
-        self.gp[L.TICK] = (b.length / b.grid[0]) / b.speed
-        self.last_end = self.specs[-1].workspace[1]
-        change = scenario.bins.change_time
-        self.end_at = self.duration + self.last_end / b.speed + DRAIN_SLACK + change
+        self.gp[L.TICK] = plan.tick
+        self.last_end = plan.last_end
+        self.end_at = plan.end_at
         self.gp[L.END_AT] = self.end_at
-        self.gp[L.CHANGE] = change
+        self.gp[L.CHANGE] = plan.change_time
         self.gp[L.HALF], self.gp[L.TWO] = 0.5, 2.0
         self.gi = np.zeros(L.N_GI, dtype=np.int64)
-        self.gi[L.SCHEME] = L.SCHEME_CODES[scenario.termination]
-        self.gi[L.CAPACITY] = scenario.bins.capacity
+        self.gi[L.SCHEME] = plan.scheme
+        self.gi[L.CAPACITY] = plan.capacity
         self.gi[L.HOLD] = int(hold)
         self.uses_siro = L.SIRO in codes
         self.breaks = bool(self.ip[:, L.FAILMODE].any())
 
     # -- streams ---------------------------------------------------------------------------
     def _streams(self, siro_room: int, exp_room: int) -> None:
-        """Pre-drawn draws from fresh copies of the policy and failure streams (the copies
-        are kept: :meth:`_grow` draws on from them)."""
-        self._siro_rng = copy.deepcopy(self.policy_rng)
-        self._exp_rngs = [copy.deepcopy(rng) for rng in self.failure_rngs]
+        """Pre-drawn draws of the streams this run uses: SIRO's from a copy of the policy
+        stream as the policy holds it, breakdowns' from fresh generators of the robots'
+        streams. The generators are kept: :meth:`_grow` draws on from them."""
+        self._siro_rng: np.random.Generator | None = None
+        self._exp_rngs: list[np.random.Generator | None] = [None] * len(self.specs)
+        if self.uses_siro:  # a rule mix's reset was given policy_rng: copy it as it stands
+            rng = self.policy_rng
+            fresh = rng is None
+            self._siro_rng = self.plan.stream(self._seeds, POLICY) if fresh else copy.deepcopy(rng)
+        for r in np.flatnonzero(self.ip[:, L.FAILMODE] == L.EXPONENTIAL).tolist():
+            self._exp_rngs[r] = self.plan.stream(self._seeds, FIRST_ROBOT + r)
         self._siro = self._draw_siro(siro_room if self.uses_siro else 0)
         self._exps = self._draw_exps(exp_room if self.breaks else 0)
 
     def _draw_siro(self, k: int) -> np.ndarray:
+        if self._siro_rng is None:
+            return np.zeros(0, dtype=np.int64)
         return self._siro_rng.integers(0, 2**32, size=k, dtype=np.uint32).astype(np.int64)
 
     def _draw_exps(self, k: int) -> np.ndarray:
         exps = np.zeros((len(self.specs), k))
         for r, rng in enumerate(self._exp_rngs):
-            if self.ip[r, L.FAILMODE] == L.EXPONENTIAL:
+            if rng is not None:
                 exps[r] = rng.standard_exponential(k)
         return exps
 
@@ -190,14 +202,30 @@ class FastLine:
         generators, so the result never depends on the first guess of the room."""
         what = int(self.gs[L.ROOMFOR])
         if what == L.ROOM_SPANS:
-            self.sp_i = np.concatenate([self.sp_i, np.zeros_like(self.sp_i)])
-            self.sp_f = np.concatenate([self.sp_f, np.zeros_like(self.sp_f)])
+            rows = self._span_room()
+            # in place (a reallocation: never the old and the new buffer at once), unless
+            # something else holds a view of a buffer: then a longer copy
+            try:
+                self.sp_i.resize((rows, 2), refcheck=True)
+            except ValueError:
+                self.sp_i = _longer(self.sp_i, rows)
+            try:
+                self.sp_f.resize((rows, 2), refcheck=True)
+            except ValueError:
+                self.sp_f = _longer(self.sp_f, rows)
         elif what == L.ROOM_SIRO:
             self._siro = np.concatenate([self._siro, self._draw_siro(max(len(self._siro), 64))])
         else:
             more = self._draw_exps(max(self._exps.shape[1], 64))
             self._exps = np.concatenate([self._exps, more], axis=1)
         self.gs[L.STATUS] = L.ST_OK
+
+    def _span_room(self) -> int:
+        """The span buffer's new length when it is full: the spans so far projected to the
+        end of the run at the rate so far, and 5 % more (1.5 to 8 times the buffer)."""
+        k, now, room = int(self.gs[L.NSPANS]), max(self.now, self.gp[L.TICK]), len(self.sp_i)
+        projected = int(1.05 * k * (self.end_at / now)) + len(self.specs) + 2 * L.SPAN_MARGIN
+        return max(min(projected, 8 * room), int(1.5 * room) + 64)
 
     def run(self) -> None:
         """Feed for ``duration`` seconds, then drain (as Line.run)."""
@@ -214,13 +242,15 @@ class FastLine:
             raise RuntimeError(f"engine fast: an event ran out of room (status {status})")
 
     def _rooms(self) -> tuple[int, int, int]:
-        """First guesses of the span buffer and the pre-drawn SIRO and failure streams."""
+        """First guesses of the span buffer and the pre-drawn SIRO and failure streams; all
+        grow on demand (ST_ROOM), so a guess only sets the memory and the number of calls.
+        Spans: about one per part, and each robot's NooPs during the drain."""
         n_parts, n = len(self.fed), len(self.specs)
         mtbf = self.fp[:, L.MTBF]
         mean = float(mtbf[mtbf > 0].min()) if self.breaks else 1.0
-        # a NooP lasts a belt tick or until the next part enters: at most one per tick or part
-        spans = n * (int(self.end_at / self.gp[L.TICK]) + n_parts + 2) + 4 * n_parts + 1024
-        return spans, 2 * n_parts + 1024, int(4 * self.end_at / mean) + 64
+        drain = int((self.end_at - self.duration) / self.gp[L.TICK]) + 2
+        spans = n_parts + n * drain + 256
+        return spans, n_parts + 256, int(4 * self.end_at / mean) + 64
 
     def start(self, span_room: int, siro_room: int, exp_room: int) -> None:
         """The state at t = 0: robots at their bases, processes about to start."""
@@ -236,15 +266,18 @@ class FastLine:
         self.rec_i = np.full((n_parts, 2), -1, dtype=np.int64)
         self.rec_f = np.full((n_parts, 4), math.nan)
         self.rec_f[:, 3] = 0.0
-        self.sp_i = np.zeros((span_room, 2), dtype=np.int64)
-        self.sp_f = np.zeros((span_room, 2))
+        self.sp_i = np.zeros((span_room, 2), dtype=np.int32)  # robot, state
+        self.sp_f = np.zeros((span_room, 2))  # start, end
         self.counts = np.zeros((n, len(L.RULE_NAMES)), dtype=np.int64)
-        self._c_i = np.zeros(n_parts + 1, dtype=np.int64)
-        self._c_f = np.zeros((n_parts + 1, 3))
+        self._c_i = np.empty(n_parts + 1, dtype=np.int64)  # scratch: a decision's candidates
+        self._c_f = np.empty((n_parts + 1, 3))
         start_robots(self.fp, self.ip, self.fs, self.ist, self.gs, self._exps)
         self.extra_rules, self.extra_counts = [], Counter()
         if self.external is not None:  # as Line: reset with the policy stream, then attach
             self.external.reset(self.specs, np.random.default_rng(self._policy_seed))
+            bind = getattr(self.external, "bind_run", None)
+            if callable(bind):
+                bind(self.scenario, self.seed, self.duration)
             attach = getattr(self.external, "attach", None)
             if callable(attach):
                 attach(self.belt)
@@ -354,6 +387,17 @@ class FastLine:
             end=self.sp_f[:k, 1],
         )
         return parts, spans
+
+    def kpis(self, warmup: float) -> dict[str, Any]:
+        """The run's KPIs, as :func:`twin.kpis.compute_kpis` gives them from
+        :meth:`kpi_records`, with the sums taken in one compiled pass over the arrays."""
+        from pnp_twin.twin.fast.tally import tally
+
+        names = (*L.RULE_NAMES, *self.extra_rules)
+        n_spans, n = int(self.gs[L.NSPANS]), len(self.specs)
+        arrays = (self.fed, self.rec_i, self.rec_f, self.sp_i, self.sp_f)
+        sums = tally(*arrays, n_spans, n, len(names), warmup, self.duration)
+        return tally_kpis(sums, names, self.specs, warmup, self.duration)
 
     def recorder(self) -> Recorder:
         """The run's records in the twin's Recorder, so tables are built by the same code."""

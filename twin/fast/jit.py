@@ -12,8 +12,9 @@ Where: ``$NUMBA_CACHE_DIR/pnp_twin`` when set; else this package's ``__pycache__
 when it is writable (a checkout, a user's own install); else the user's cache folder
 (``$XDG_CACHE_HOME`` or ``~/.cache``, ``pnp_twin/numba``): a read-only install compiles once
 per user. Each fingerprint folder records which engine folder wrote it (``owner.txt``);
-only folders this same engine folder wrote under another fingerprint are removed, so two
-checkouts or installs sharing one cache folder never delete each other's code.
+only folders this same engine folder wrote under another fingerprint, untouched for
+``STALE_AFTER`` seconds (a process of the older sources may still be writing there), are
+removed, so two checkouts or installs sharing one cache folder never delete each other's code.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import functools
 import hashlib
 import os
 import shutil
+import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
@@ -31,6 +33,7 @@ from numba.core import config
 
 ENGINE = Path(__file__).resolve().parent
 OWNER = "owner.txt"
+STALE_AFTER = 600.0  # s without a write before another fingerprint's folder is ours to remove
 
 
 def fingerprint(folders: Iterable[Path] = ()) -> str:
@@ -81,8 +84,11 @@ def _cache_dir(folders: tuple[Path, ...]) -> str:
         tmp = here / f"{OWNER}.{os.getpid()}.tmp"
         tmp.write_text(me + "\n", encoding="utf-8")
         os.replace(tmp, here / OWNER)
+    now = time.time()
     for old in root.iterdir():
-        if old != here and old.is_dir() and _owner(old) == me and _stale(old, folders):
+        if old == here or not old.is_dir() or _owner(old) != me or not _stale(old, folders):
+            continue
+        if now - old.stat().st_mtime > STALE_AFTER:
             shutil.rmtree(old, ignore_errors=True)
     return str(here)
 

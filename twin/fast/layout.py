@@ -5,6 +5,8 @@ Robot parameters ``fp``/``ip`` and robot state ``fs``/``ist`` have one row per r
 epochs, stream positions, the clock).
 """
 
+from pnp_twin.twin.plan import RULES, SCHEMES
+
 # robot float parameters fp[r, .]
 BA, BB, XLO, QUAD, VR, ACC, PICK, PLACE, BX, BY, BASEX, BASEY, MTBF, MTTR = range(14)
 N_FP = 14
@@ -12,9 +14,10 @@ N_FP = 14
 RULE, FAILMODE = range(2)
 N_IP = 2
 NOFAIL, EXPONENTIAL, FIXED = range(3)
-# rule codes, then the NooP column of the decision counts
+# rule codes (twin.plan.RULES' indices), then the NooP column of the decision counts
 FIFO, LIFO, SIRO, SD, LD, SPT, NOOP = range(7)
-RULE_NAMES = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT", "NooP")
+RULE_NAMES = (*RULES, "NooP")
+assert RULE_NAMES == ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT", "NooP")
 EXTERNAL = 7  # ip[r, RULE]: the caller chooses (the kernel stops with ST_CHOOSE)
 NO_RULE = -1  # the rule code of a pick whose policy names no rule ("?")
 # line float parameters gp[.]
@@ -23,11 +26,13 @@ N_GP = 6
 # line int parameters gi[.]
 SCHEME, CAPACITY, HOLD = range(3)  # HOLD: pause at every decision epoch (environments)
 N_GI = 3
-T_CONTINUE, T_ALL, T_ANY = range(3)
-SCHEME_CODES = {"t_continue": T_CONTINUE, "t_all": T_ALL, "t_any": T_ANY}
+T_CONTINUE, T_ALL, T_ANY = range(3)  # twin.plan.SCHEMES' indices
+SCHEME_CODES = {name: code for code, name in enumerate(SCHEMES)}
+assert SCHEME_CODES == {"t_continue": T_CONTINUE, "t_all": T_ALL, "t_any": T_ANY}
 # robot float state fs[r, .]
 TOOLX, TOOLY, NEXTFAIL, APPROACH, T0, TAPP, TX, TY, WAKE, WAIT0, BINREADY, DOWN0 = range(12)
-N_FS = 12
+CAL, CALW = 12, 14  # CAL + j, CALW + j: an event calendar node's robot and its wake-up
+N_FS = 16
 # robot int state ist[r, .]
 PC, ACTIVE, WPRIO, WSEQ, CLAIMED, PART, DOWN, WAITING, EXPECTED = range(9)
 BINCOUNT, BOXES, EXPIDX = range(9, 12)
@@ -37,12 +42,14 @@ RULENOW = 15  # rule code of the robot's current claim (recorded with its pick)
 PENDING = 16  # hold mode: the robot is in the epoch the caller must answer
 LASTCLAIM = 17  # the part of the robot's last claim (environments reset it to -1)
 NOOPPART = 18  # the part whose entry timed the robot's last NooP (n parts: none)
-N_IS = 19
+NOOPSTAMP = 19  # gs[RELEASES] when NOOPPART was found (it bounds the next search if equal)
+N_IS = 20
 # line int state gs[.]
 SEQ, EPOCHS, SIROIDX, NSPANS, STATUS = range(5)
 DROBOT, DN, NPENDING = range(5, 8)  # ST_CHOOSE: the robot, its candidates; hold: epoch size
 ROOMFOR = 8  # ST_ROOM: ROOM_SPANS, ROOM_SIRO or ROOM_EXPS (and the robot in DROBOT)
-N_GS = 9
+RELEASES = 9  # claims released (t_any) or parts replaced (rollouts): NOOPSTAMPs go stale
+N_GS = 10
 NOW = 0  # gf[NOW]
 # program counters: where a robot resumes when its wake-up is processed
 PC_START, PC_NOOP, PC_HELD, PC_APPROACH, PC_PLACE, PC_INTERRUPT, PC_DOWN = range(7)

@@ -84,6 +84,7 @@ def _continue_all(
             _copy(rec_f0, rec_f, n_kept, math.nan)
             for i in range(n_kept, rec_f.shape[0]):
                 rec_f[i, 3] = 0.0
+            gs[L.RELEASES] += 1  # parts past n_kept replaced: robots' NooP searches restart
             _retime_noops(fp, gp, fs, ist, fed, n, n_kept)
             choose_external(fp, gp, fs, ist, gs, holder, left_at, c_i, c_f, picks[p], rule)
             status = run_events(
@@ -167,6 +168,6 @@ def _run(
         np.zeros(L.N_GS, dtype=np.int64), np.zeros(1), np.zeros(width, dtype=np.int64),
         np.zeros(width), rec_i, rec_f, np.zeros_like(line.counts),
         np.zeros(width + 1, dtype=np.int64), np.zeros((width + 1, 3)),
-        np.zeros((0, 2), dtype=np.int64), np.zeros((0, 2)), totals,
+        np.zeros((0, 2), dtype=np.int32), np.zeros((0, 2)), totals,
     )  # fmt: skip
     return int(status), totals, (rec_i, rec_f)

@@ -1,0 +1,344 @@
+"""The robot's steps in the compiled engine (``twin/robot.py`` and ``twin/bin.py``).
+
+Candidates (parts whose interception point lies in the workspace), the dispatching rules
+(SIRO replaying numpy's ``Generator.integers`` on pre-drawn draws), a decision (a pick or a
+NooP), claims, breakdown draws and state spans; the event loop (:mod:`twin.fast.kernel`)
+runs them at the robot's wake-ups.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pnp_twin.twin.fast.calendar import _schedule
+from pnp_twin.twin.fast.jit import compiled
+from pnp_twin.twin.fast.layout import (
+    ACC,
+    APPROACH,
+    BA,
+    BASEX,
+    BASEY,
+    BB,
+    BX,
+    BY,
+    CLAIMED,
+    DN,
+    DROBOT,
+    EXPIDX,
+    EXTERNAL,
+    FAILMODE,
+    FIFO,
+    FIXED,
+    HALF,
+    HINT_HI,
+    HINT_LO,
+    LASTCLAIM,
+    LD,
+    LIFO,
+    MTBF,
+    NEXTFAIL,
+    NOOP,
+    NOOPPART,
+    NOOPSTAMP,
+    NORMAL,
+    NSPANS,
+    PART,
+    PC_APPROACH,
+    PC_NOOP,
+    PC_START,
+    PICK,
+    PLACE,
+    QUAD,
+    RELEASES,
+    RULE,
+    RULENOW,
+    SD,
+    SIRO,
+    SIROIDX,
+    ST_CHOOSE,
+    ST_EXPS,
+    ST_SIRO,
+    ST_SPANS,
+    STATUS,
+    T0,
+    TAPP,
+    TICK,
+    TOOLX,
+    TOOLY,
+    TWO,
+    TX,
+    TY,
+    URGENT,
+    VR,
+    XLO,
+    V,
+)
+from pnp_twin.twin.fast.mathlib import intercept_time, move_time, py_pow
+
+FREE = -1  # holder of a part no robot claimed
+
+
+@compiled(inline=True)
+def _bisect(a, x, right, hint):
+    """bisect_left (or bisect_right) of sorted ``a``, galloping out from index ``hint``.
+
+    The answer does not depend on the hint (it is the unique insertion point); a good hint
+    (the robot's previous answer: its queries move forward with time) makes it cheap.
+    """
+    n = a.shape[0]
+    h = min(max(hint, 0), n)
+    if h < n and (a[h] <= x if right else a[h] < x):  # answer is above h
+        lo = h + 1
+        step = 1
+        hi = lo
+        while hi < n and (a[hi] <= x if right else a[hi] < x):
+            lo = hi + 1
+            hi = lo + step
+            step *= 2
+        hi = min(hi, n)
+    else:  # answer is at or below h
+        hi = h
+        step = 1
+        lo = hi
+        while lo > 0 and not (a[lo - 1] <= x if right else a[lo - 1] < x):
+            hi = lo - 1
+            lo = max(hi - step, 0)
+            step *= 2
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] <= x if right else a[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@compiled(inline=True)
+def _span(gs, sp_i, sp_f, r, state, start, end):
+    if end > start and sp_i.shape[0] > 0:  # a run given no span buffer records no spans
+        k = gs[NSPANS]
+        if k >= sp_i.shape[0]:
+            gs[STATUS] = ST_SPANS
+            return
+        sp_i[k, 0] = r
+        sp_i[k, 1] = state
+        sp_f[k, 0] = start
+        sp_f[k, 1] = end
+        gs[NSPANS] = k + 1
+
+
+@compiled(inline=True)
+def _draw(fp, ip, ist, gs, exps, r, col):
+    mean = fp[r, col]
+    if ip[r, FAILMODE] == FIXED:
+        return mean
+    k = ist[r, EXPIDX]
+    if k >= exps.shape[1]:
+        gs[STATUS] = ST_EXPS
+        return math.inf
+    ist[r, EXPIDX] = k + 1
+    return mean * exps[r, k]
+
+
+@compiled()
+def _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f):
+    """Robot._candidates: unclaimed parts whose interception point lies in [a, b]."""
+    v = gp[V]
+    px = fs[r, TOOLX]
+    py = fs[r, TOOLY]
+    a = fp[r, BA]
+    b = fp[r, BB]
+    quad = fp[r, QUAD]
+    acc = fp[r, ACC]
+    vv = v * v
+    vnow = v * now
+    x_lo = fp[r, XLO]
+    lo_x = x_lo
+    if 0.0 > x_lo:
+        lo_x = 0.0
+    lo = _bisect(fed, now - b / v, False, ist[r, HINT_LO])
+    hi = _bisect(fed, now - lo_x / v, True, ist[r, HINT_HI])
+    ist[r, HINT_LO] = lo
+    ist[r, HINT_HI] = hi
+    n = 0
+    for i in range(lo, hi):
+        if holder[i] != FREE:
+            continue
+        x = vnow - v * fed[i]
+        y = ys[i]
+        dx = x - px
+        dy = y - py
+        if acc > 0.0:
+            t = intercept_time(dx, dy, v, fp[r, VR], acc)
+        else:
+            t = (dx * v + math.sqrt(dx * dx * vv + quad * (dx * dx + dy * dy))) / quad
+        xi = x + v * t
+        if a <= xi and xi <= b:
+            c_i[n] = i
+            c_f[n, 0] = x
+            c_f[n, 1] = y
+            c_f[n, 2] = t
+            n += 1
+    return n
+
+
+@compiled()
+def _lemire(siro, gs, n):
+    """numpy Generator.integers(n) on a pre-drawn stream of next_uint32 outputs."""
+    rng = n - 1
+    if rng == 0:
+        return 0
+    excl = n
+    k = gs[SIROIDX]
+    if k >= siro.shape[0]:
+        gs[STATUS] = ST_SIRO
+        return 0
+    m = siro[k] * excl
+    k += 1
+    left = m & 0xFFFFFFFF
+    if left < excl:
+        thr = (0xFFFFFFFF - rng) % excl
+        while left < thr:
+            if k >= siro.shape[0]:
+                gs[STATUS] = ST_SIRO
+                gs[SIROIDX] = k
+                return 0
+            m = siro[k] * excl
+            k += 1
+            left = m & 0xFFFFFFFF
+    gs[SIROIDX] = k
+    return m >> 32
+
+
+@compiled()
+def _choose(fp, ip, gp, gs, siro, r, n, c_f):
+    """policies.rules applied to the candidates (furthest downstream first)."""
+    rule = ip[r, RULE]
+    if rule == FIFO:
+        return 0
+    if rule == LIFO:
+        return n - 1
+    if rule == SIRO:
+        return _lemire(siro, gs, n)
+    if rule == SD or rule == LD:
+        best = 0
+        for k in range(1, n):
+            if rule == SD and c_f[k, 1] > c_f[best, 1]:
+                best = k
+            elif rule == LD and c_f[k, 1] < c_f[best, 1]:
+                best = k
+        return best
+    # SPT: the smallest full cycle time, first of equals
+    v = gp[V]
+    bx = fp[r, BX]
+    by = fp[r, BY]
+    two = gp[TWO]
+    half = gp[HALF]
+    best = 0
+    best_c = math.inf
+    pick = fp[r, PICK]
+    place = fp[r, PLACE]
+    for k in range(n):
+        t = c_f[k, 2]
+        xi = c_f[k, 0] + v * t
+        d = py_pow(py_pow(bx - xi, two) + py_pow(by - c_f[k, 1], two), half)
+        transfer = move_time(d, fp[r, VR], fp[r, ACC])
+        c = t + pick + transfer + place
+        if k == 0 or c < best_c:
+            best = k
+            best_c = c
+    return best
+
+
+@compiled()
+def _next_entry(gp, fed, holder, now, x, hint, floor):
+    """Belt.next_entry: time until the next unclaimed part upstream of x reaches it, and
+    that part's index (len(fed) and inf when there is none). Every part from the first
+    upstream of x up to ``floor`` is known to be claimed (the answer of the robot's last
+    search, no claim released since): the search starts there."""
+    v = gp[V]
+    lag = x / v
+    i = _bisect(fed, now - lag, True, hint)
+    if floor > i:
+        i = floor
+    n = fed.shape[0]
+    while i < n and (holder[i] != FREE or fed[i] + lag <= now):
+        i += 1
+    if i >= n:
+        return math.inf, n
+    return fed[i] + lag - now, i
+
+
+@compiled()
+def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i, c_f, r, now, v):
+    """Look at the candidates: pick one (claim it, start the approach) or take a NooP."""
+    n = _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f)
+    fs[r, T0] = now
+    if n == 0:
+        counts[r, NOOP] += 1
+        floor = ist[r, NOOPPART] if ist[r, NOOPSTAMP] == gs[RELEASES] else 0
+        wait, ist[r, NOOPPART] = _next_entry(
+            gp, fed, holder, now, fp[r, BA], ist[r, HINT_HI], floor
+        )
+        ist[r, NOOPSTAMP] = gs[RELEASES]
+        tick = gp[TICK]
+        if tick < wait:
+            wait = tick
+        if now + wait <= now:  # too small to move the clock: a NooP must let time pass
+            wait = tick
+        _schedule(fs, ist, gs, r, now + wait, NORMAL, PC_NOOP)
+        return
+    rule = ip[r, RULE]
+    if rule == EXTERNAL:  # the caller chooses: choose_external resumes
+        gs[STATUS] = ST_CHOOSE
+        gs[DROBOT] = r
+        gs[DN] = n
+        return
+    k = _choose(fp, ip, gp, gs, siro, r, n, c_f)
+    counts[r, rule] += 1
+    _claim(fs, ist, holder, left_at, c_i, c_f, r, now, v, k, rule)
+    _schedule(fs, ist, gs, r, now + (fs[r, TAPP] + fp[r, PICK]), NORMAL, PC_APPROACH)
+
+
+@compiled()
+def choose_external(fp, gp, fs, ist, gs, holder, left_at, c_i, c_f, k, rule):
+    """The caller's answer to ST_CHOOSE: candidate ``k``, recorded under rule code ``rule``
+    (a code of layout.RULE_NAMES, a caller's own code above them, or NO_RULE)."""
+    r = gs[DROBOT]
+    now = fs[r, T0]
+    _claim(fs, ist, holder, left_at, c_i, c_f, r, now, gp[V], k, rule)
+    _schedule(fs, ist, gs, r, now + (fs[r, TAPP] + fp[r, PICK]), NORMAL, PC_APPROACH)
+    gs[STATUS] = 0
+
+
+@compiled(inline=True)
+def _claim(fs, ist, holder, left_at, c_i, c_f, r, now, v, k, rule):
+    """Claim candidate ``k`` for the approach (Robot.working after the policy's answer)."""
+    part = c_i[k]
+    t = c_f[k, 2]
+    fs[r, TX] = c_f[k, 0] + v * t
+    fs[r, TY] = c_f[k, 1]
+    fs[r, TAPP] = t
+    holder[part] = r
+    left_at[part] = now + t
+    ist[r, CLAIMED] = part
+    ist[r, PART] = part
+    ist[r, RULENOW] = rule
+    ist[r, LASTCLAIM] = part
+    fs[r, APPROACH] = now + t
+
+
+@compiled()
+def start_robots(fp, ip, fs, ist, gs, exps):
+    """Robot.__init__ and Line start: first failures drawn, processes initialised in order."""
+    for r in range(ist.shape[0]):
+        fs[r, TOOLX] = fp[r, BASEX]
+        fs[r, TOOLY] = fp[r, BASEY]
+        fs[r, NEXTFAIL] = math.inf
+        fs[r, APPROACH] = -math.inf
+        ist[r, CLAIMED] = -1
+        ist[r, LASTCLAIM] = -1
+        if ip[r, FAILMODE] != 0:
+            fs[r, NEXTFAIL] = _draw(fp, ip, ist, gs, exps, r, MTBF)
+    for r in range(ist.shape[0]):
+        _schedule(fs, ist, gs, r, 0.0, URGENT, PC_START)

@@ -1,0 +1,132 @@
+"""The KPIs' sums over the engine's record arrays in one compiled pass.
+
+:func:`tally` fills the :class:`twin.kpis.KpiTally` that :func:`twin.kpis.tally` computes
+with numpy (about forty array passes) from the same records: the same numbers, each sum
+taken in the same order (per robot and column, parts first, then spans, in record order, as
+``np.add.at`` takes them), so :func:`twin.kpis.tally_kpis` builds identical KPIs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pnp_twin.twin.fast.jit import compiled
+from pnp_twin.twin.fast.layout import S_NOOP, SPAN_NAMES
+from pnp_twin.twin.kpis import SPAN_STATES, STATES, WELCH_BINS, KpiTally
+
+COL_OF = np.array(
+    [
+        *(STATES.index(s) for s in ("wait", "busy", "noop", "blocked", "down")),
+        STATES.index("busy"),
+        STATES.index("blocked"),
+    ],
+    dtype=np.int64,
+)
+"""The STATES column of each span state code (an interruption is busy time), then the
+columns of busy and of blocked time."""
+assert SPAN_NAMES == SPAN_STATES  # the engine's span codes are the KPIs'
+
+
+@compiled(inline=True)
+def _clipped(start, end, w0, w1):
+    """twin.kpis.clipped for one interval (np.maximum / np.minimum / np.clip, NaN kept)."""
+    s = start if (start >= w0 or start != start) else w0
+    e = end if (end <= w1 or end != end) else w1
+    d = e - s
+    return d if (d >= 0.0 or d != d) else 0.0
+
+
+@compiled()
+def _tally(fed, rec_i, rec_f, sp_i, sp_f, k_spans, w0, w1, col_of, out_i, out_f, sums):
+    """The sums (see :class:`twin.kpis.KpiTally`) into zeroed arrays: ``out_i`` rows picks,
+    starts, rules, welch_parts, scratch (as long as the parts); ``out_f`` rows states
+    (n x 5), welch_picked; ``sums`` the cycles then the cycles by robot (as long as the
+    parts). ``col_of``: :data:`COL_OF`. Returns (presented, picked, noops)."""
+    picks, starts, rules, welch_parts, owner = out_i
+    states, welch_picked = out_f
+    cycles, grouped = sums
+    n = picks.shape[0]
+    bins = welch_parts.shape[0]
+    busy = col_of[5]
+    blocked = col_of[6]
+    presented = 0
+    picked = 0
+    for i in range(fed.shape[0]):
+        f = fed[i]
+        got = rec_f[i, 1] == rec_f[i, 1]  # picked: it has a grip time
+        if got:
+            states[rec_i[i, 0], busy] += _clipped(rec_f[i, 0], rec_f[i, 2], w0, w1)
+        if f >= 0.0 and f < w1:
+            b = int(f / w1 * bins)
+            if b > bins - 1:
+                b = bins - 1
+            welch_parts[b] += 1
+            if got:
+                welch_picked[b] += 1.0
+        if f >= w0 and f < w1:
+            presented += 1
+            if got:
+                r = rec_i[i, 0]
+                cycles[picked] = rec_f[i, 2] - rec_f[i, 0]
+                owner[picked] = r
+                picked += 1
+                picks[r] += 1
+                rules[rec_i[i, 1] + 1] += 1
+    for r in range(1, n):  # each robot's start (its next slot while filling)
+        starts[r] = starts[r - 1] + picks[r - 1]
+    for k in range(picked):
+        r = owner[k]
+        grouped[starts[r]] = cycles[k]
+        starts[r] += 1
+    for r in range(n, 0, -1):  # each robot's next slot is now the next robot's start
+        starts[r] = starts[r - 1]
+    starts[0] = 0
+    noops = 0
+    for j in range(k_spans):
+        state = sp_i[j, 1]
+        start = sp_f[j, 0]
+        states[sp_i[j, 0], col_of[state]] += _clipped(start, sp_f[j, 1], w0, w1)
+        if state == S_NOOP and start >= w0 and start < w1:
+            noops += 1
+    if k_spans > 0:  # blocked time sits inside the busy cycle span: move it out of busy
+        for r in range(n):
+            states[r, busy] -= states[r, blocked]
+    return presented, picked, noops
+
+
+def tally(
+    fed: np.ndarray,
+    rec_i: np.ndarray,
+    rec_f: np.ndarray,
+    sp_i: np.ndarray,
+    sp_f: np.ndarray,
+    n_spans: int,
+    n_robots: int,
+    n_rules: int,
+    warmup: float,
+    duration: float,
+) -> KpiTally:
+    """The :class:`~twin.kpis.KpiTally` of a fast run's arrays over [warmup, duration)
+    (``n_rules``: the number of rule codes its picks may carry)."""
+    n_parts = len(fed)
+    picks, starts, rules = (np.zeros(k, np.int64) for k in (n_robots, n_robots + 1, n_rules + 1))
+    welch_parts, welch_picked = np.zeros(WELCH_BINS, np.int64), np.zeros(WELCH_BINS)
+    states = np.zeros((n_robots, len(STATES)))
+    cycles, grouped, owner = np.empty(n_parts), np.empty(n_parts), np.empty(n_parts, np.int64)
+    presented, picked, noops = _tally(
+        fed, rec_i, rec_f, sp_i, sp_f, n_spans, warmup, duration, COL_OF,
+        (picks, starts, rules, welch_parts, owner), (states, welch_picked), (cycles, grouped),
+    )  # fmt: skip
+    return KpiTally(
+        presented=int(presented),
+        picked=int(picked),
+        picks=picks,
+        states=states,
+        cycles=cycles[:picked],
+        robot_cycles=grouped[:picked],
+        robot_starts=starts,
+        rules=rules,
+        noops=int(noops),
+        welch_parts=welch_parts,
+        welch_picked=welch_picked,
+    )

@@ -1,0 +1,159 @@
+"""One description of a line: everything derived from a scenario, computed once.
+
+Both engines read a :class:`LinePlan`: the SimPy twin (:class:`twin.line.Line` hands each
+:class:`~twin.robot.Robot` its :class:`RobotPlan`) and the compiled engine
+(:class:`twin.fast.engine.FastLine` turns the same plan into the kernel's arrays). So the
+derived constants (workspaces and bins, each robot's reach margin ``x_lo``, its base, the
+belt tick, the end of the run, the seed split, the rule and scheme codes) are the same
+doubles in both, written once here.
+
+The seed is split into independent child streams, in this order: feeder arrivals, lateral
+positions, the policy, then one per robot (breakdowns); so the part stream does not depend
+on the policy. :meth:`LinePlan.seeds` gives the children; a stream's generator is built only
+where a run uses it (:meth:`LinePlan.stream`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pnp_twin.twin.decision import RobotSpec
+from pnp_twin.twin.gateway import SCHEMES
+from pnp_twin.twin.geometry import bin_position, intercept_quad
+from pnp_twin.twin.scenario import Scenario
+
+RULES = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT")
+"""The built-in dispatching rules; a rule's code is its index here (both engines)."""
+# SCHEMES (imported above, from the gateway that runs them): a scheme's code is its index
+DRAIN_SLACK = 30.0  # s after the last part passed the last workspace, for the last places
+ARRIVALS, LATERAL, POLICY, FIRST_ROBOT = range(4)
+"""The seed split: child stream k of the master seed (robot r's is ``FIRST_ROBOT + r``)."""
+__all__ = [
+    "ARRIVALS", "DRAIN_SLACK", "FIRST_ROBOT", "LATERAL", "POLICY", "RULES", "SCHEMES",
+    "LinePlan", "RobotPlan", "reach_margin", "robot_specs",
+]  # fmt: skip
+
+
+def robot_specs(scenario: Scenario) -> list[RobotSpec]:
+    """Each robot's resolved parameters (shared defaults with per-robot overrides)."""
+    out = []
+    belt = scenario.belt
+    for i, (a, b) in enumerate(scenario.robots.layout()):
+        p = lambda name, i=i: scenario.robot_param(i + 1, name)  # noqa: E731
+        out.append(
+            RobotSpec(
+                index=i,
+                count=scenario.robots.count,
+                workspace=(a, b),
+                bin=bin_position((a, b), belt.width, p("bin_offset")),
+                arm_speed=float(p("arm_speed")),
+                acceleration=float(p("acceleration")),
+                pick_time=float(p("pick_time")),
+                place_time=float(p("place_time")),
+                belt_speed=belt.speed,
+                belt_width=belt.width,
+            )
+        )
+    return out
+
+
+def reach_margin(spec: RobotSpec) -> float:
+    """``x_lo``: upstream parts can only be intercepted inside [a, b] when the tool is far
+    from them; beyond this margin the tool always meets them before x = a."""
+    a, b = spec.workspace
+    xs = (a, b, spec.bin[0])
+    ys = (0.0, spec.belt_width, spec.bin[1])
+    reach = math.hypot(max(xs) - min(xs), max(ys) - min(ys))
+    return a - reach * spec.belt_speed / spec.arm_speed
+
+
+@dataclass(frozen=True)
+class RobotPlan:
+    """One robot as both engines run it."""
+
+    spec: RobotSpec
+    x_lo: float  # reach margin (:func:`reach_margin`)
+    quad: float  # v_r^2 - v_b^2 (:func:`twin.geometry.intercept_quad`)
+    base: tuple[float, float]  # the tool's position at t = 0: workspace centre, belt centre
+    mtbf: float  # s; 0: no breakdowns
+    mttr: float  # s
+    failures: str  # "exponential" or "fixed" (read when mtbf > 0)
+
+    @property
+    def breaks(self) -> bool:
+        return self.mtbf > 0
+
+
+@dataclass(frozen=True)
+class LinePlan:
+    """One run's line: the scenario with a seed and a feeding duration, and all that
+    follows from them (see the module docstring)."""
+
+    scenario: Scenario
+    seed: int
+    duration: float  # s of feeding
+    robots: tuple[RobotPlan, ...]
+    last_end: float  # m: the end of the last workspace
+    tick: float  # s: the time the belt needs to move one grid cell (the longest NooP)
+    end_at: float  # s: the end of the run (feeding, then the drain)
+    scheme: int  # code of the termination scheme (index into SCHEMES)
+    capacity: int  # parts per box, 0: unlimited
+    change_time: float  # s per box change
+
+    @classmethod
+    def of(
+        cls, scenario: Scenario, seed: int | None = None, duration: float | None = None
+    ) -> LinePlan:
+        """The plan of a run of ``scenario`` (its own seed and duration unless given)."""
+        seed = scenario.seed if seed is None else seed
+        duration = scenario.duration if duration is None else duration
+        b = scenario.belt
+        robots = []
+        for spec in robot_specs(scenario):
+            a, end = spec.workspace
+            i = spec.index + 1
+            robots.append(
+                RobotPlan(
+                    spec=spec,
+                    x_lo=reach_margin(spec),
+                    quad=intercept_quad(spec.arm_speed, spec.belt_speed),
+                    base=((a + end) / 2.0, b.width / 2.0),
+                    mtbf=scenario.robot_param(i, "mtbf"),
+                    mttr=scenario.robot_param(i, "mttr"),
+                    failures=scenario.robots.failure_distribution,
+                )
+            )
+        last_end = robots[-1].spec.workspace[1]
+        change = scenario.bins.change_time
+        return cls(
+            scenario=scenario,
+            seed=seed,
+            duration=duration,
+            robots=tuple(robots),
+            last_end=last_end,
+            tick=(b.length / b.grid[0]) / b.speed,
+            end_at=duration + last_end / b.speed + DRAIN_SLACK + change,
+            scheme=SCHEMES.index(scenario.termination),
+            capacity=scenario.bins.capacity,
+            change_time=change,
+        )
+
+    @property
+    def specs(self) -> list[RobotSpec]:
+        return [r.spec for r in self.robots]
+
+    def seeds(self) -> list[np.random.SeedSequence]:
+        """The child seeds of the split (see the module docstring)."""
+        return np.random.SeedSequence(self.seed).spawn(FIRST_ROBOT + len(self.robots))
+
+    @staticmethod
+    def stream(seeds: list[np.random.SeedSequence], k: int) -> np.random.Generator:
+        """The generator of child stream ``k`` (ARRIVALS, LATERAL, POLICY, FIRST_ROBOT + r)."""
+        return np.random.default_rng(seeds[k])
+
+    def streams(self) -> list[np.random.Generator]:
+        """Every child stream's generator, in the split's order."""
+        return [np.random.default_rng(s) for s in self.seeds()]
