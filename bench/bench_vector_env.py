@@ -3,6 +3,7 @@ beside ``SyncVectorEnv`` of the SimPy ``PickPlaceEnv`` on the same settings, in 
 
 Usage: ``python bench/bench_vector_env.py [--scenario paper_baseline] [--envs 64,256,1024]
 [--threads 1,2] [--seconds 1] [--repeat 3] [--simpy-envs 8 --simpy-steps 300] [--profile]``
+(``--threads``: the env's ``threads`` argument, each at most numba's thread count).
 
 Each call draws one random action per env with numpy (``Discrete(625)`` on paper_baseline)
 and steps every env; episodes end by the registered cap of 5000 steps or the scenario's
@@ -104,9 +105,8 @@ def main() -> None:
         f"{s_cpu:,.0f} per CPU s"
     )
     for n in [int(x) for x in args.envs.split(",")]:
-        env = PickPlaceVectorEnv(num_envs=n, **kw)
         for threads in [int(x) for x in args.threads.split(",")]:
-            numba.set_num_threads(threads)
+            env = PickPlaceVectorEnv(num_envs=n, threads=threads, **kw)
             calls = max(5, int(args.seconds * 5e5 / n))
             wall, cpu = bench(env, calls, args.repeat)
             print(
@@ -114,7 +114,7 @@ def main() -> None:
                 f"{cpu:>11,.0f} per CPU s; {wall / s_wall:6.0f}x SimPy (wall)"
             )
         if args.profile:
-            profile(env, max(5, int(args.seconds * 2e5 / n)))
+            profile(PickPlaceVectorEnv(num_envs=n, **kw), max(5, int(args.seconds * 2e5 / n)))
 
 
 if __name__ == "__main__":

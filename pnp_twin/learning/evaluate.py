@@ -168,10 +168,18 @@ def compare(
     return Comparison(table, runs, mix, seed_list, reference, line, engines)
 
 
+def by_name(spec: str) -> bool:
+    """Whether ``spec`` names a policy the registry makes (``sb3:MODEL.zip``, the lookahead
+    controller) rather than an HDQN folder."""
+    if spec.startswith("sb3:"):
+        return True
+    return (spec == "lookahead" or spec.startswith("lookahead:")) and not Path(spec).is_dir()
+
+
 def trained_policy(trained: str | Path) -> tuple[str, Callable[[], Policy]]:
     """The name and a fresh-policy maker of an HDQN folder or an ``sb3:MODEL.zip`` spec."""
     spec = str(trained)
-    if spec.startswith("sb3:"):
+    if by_name(spec):
         return str(getattr(make_policy(spec), "name", spec)), partial(make_policy, spec)
     from pnp_twin.policies.hdqn.policy import HDQNPolicy
 
@@ -214,7 +222,8 @@ def write_evaluation(comparison: Comparison, hdqn: str | Path, out: str | Path) 
     """
     from pnp_twin.policies.hdqn.checkpoint import read_meta
 
-    mode = "sb3" if str(hdqn).startswith("sb3:") else read_meta(hdqn).get("mode", "")
+    spec = str(hdqn)
+    mode = spec.partition(":")[0] if by_name(spec) else read_meta(hdqn).get("mode", "")
     line = comparison.scenario
     if line is None:
         raise ValueError("write_evaluation needs a comparison made by compare()")

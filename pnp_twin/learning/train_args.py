@@ -17,6 +17,7 @@ from functools import cache
 from typing import Any
 
 from pnp_twin.learning.envs.driver import EnvError, check_rules
+from pnp_twin.learning.envs.options import NOOP_PENALTY, REWARD_WEIGHTS
 from pnp_twin.policies.hdqn import MODES
 from pnp_twin.policies.rules import RULES
 
@@ -76,9 +77,9 @@ class TrainArgs:
     """Final exploration rate."""
     eps_fraction: float = 0.3
     """Fraction of the steps over which epsilon decays linearly."""
-    reward_weights: tuple[float, float] = (1.0, 1.0)
+    reward_weights: tuple[float, float] = REWARD_WEIGHTS
     """Weights of eq. 1 (picks per second) and eq. 2 (NooP penalty)."""
-    noop_penalty: float = 0.01
+    noop_penalty: float = NOOP_PENALTY
     """Eq. 2's penalty per NooP."""
     eval_every: int | None = None
     """Steps between evaluations (default: steps / 10)."""

@@ -75,8 +75,8 @@ def test_frames_follow_the_parts_and_differ_between_steps():
     assert all(f.shape == frames[0].shape for f in frames)
     assert any(not np.array_equal(a, b) for a, b in zip(frames, frames[1:], strict=False))
     assert PickPlaceEnv(overrides=SHORT).render() is None
-    with pytest.raises(EnvError, match="^render_mode: 'human' is not allowed"):
-        PickPlaceEnv(render_mode="human")
+    with pytest.raises(EnvError, match="^render_mode: 'video' is not allowed"):
+        PickPlaceEnv(render_mode="video")
 
 
 def test_render_collection_gathers_one_frame_per_step():

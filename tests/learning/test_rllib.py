@@ -1,10 +1,13 @@
 """RLlib's PPO runs a few iterations on the PettingZoo env through RLlib's own wrapper.
 
 RLlib needs ``pip install 'ray[rllib]'`` (which pins gymnasium 1.2.2; the project supports
-1.2.2 and the newest 1.x). Without it this test is skipped, with the reason.
+1.2.2 and the newest 1.x). Without it this test is skipped, with the reason (a failure in CI,
+where the test extra installs it: tests/conftest.py).
 """
 
 from __future__ import annotations
+
+import signal
 
 import numpy as np
 import pytest
@@ -33,6 +36,8 @@ def test_rllib_ppo_trains_a_few_iterations_on_the_pettingzoo_env():
     from ray.tune.registry import register_env
 
     register_env("pnp_twin_parallel", _make)
+    # ray.init installs its own SIGTERM handler in this (pytest's) process: put pytest's back
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
     try:
         config = (
@@ -49,6 +54,8 @@ def test_rllib_ppo_trains_a_few_iterations_on_the_pettingzoo_env():
         algo.stop()
     finally:
         ray.shutdown()
+        for s, handler in handlers.items():
+            signal.signal(s, handler)
     sampled = [r["env_runners"]["num_env_steps_sampled_lifetime"] for r in results]
     assert sampled[0] >= 200 and sampled[1] > sampled[0]
     assert np.isfinite(results[-1]["env_runners"]["episode_return_mean"])

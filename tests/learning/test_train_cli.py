@@ -79,10 +79,13 @@ def test_the_progress_bar_fits_80_columns():
     assert any("123456/200000" in ln and "G 71.2%" in ln for ln in lines)
 
 
-def test_off_a_terminal_training_logs_plain_lines(tmp_path):
+def test_off_a_terminal_training_logs_plain_lines(tmp_path, foreign_signal_handlers):
     args = ["train", "paper_baseline", "--out", str(tmp_path), "--steps", "300", *SMALL]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
+    # training handles SIGINT / SIGTERM itself and gives the caller's handlers back
+    for s, handler in foreign_signal_handlers.items():
+        assert signal.getsignal(s) is handler, signal.Signals(s).name
     plain = [ln for ln in result.output.splitlines() if ln.startswith("train async: ")]
     assert len(plain) >= 3 and any("300/300 (100%)" in ln or "301/300" in ln for ln in plain)
     assert all("━" not in ln for ln in result.output.splitlines())

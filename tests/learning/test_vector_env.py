@@ -12,8 +12,8 @@ from gymnasium.vector import AutoresetMode
 
 from pnp_twin.learning.envs import ENV_ID, MAX_EPISODE_STEPS, EnvError, PickPlaceEnv
 from pnp_twin.learning.envs.vector_env import PickPlaceVectorEnv
+from pnp_twin.learning.vector import batch
 from pnp_twin.policies.rules import PAPER_RULES
-from pnp_twin.twin.fast import batch
 from pnp_twin.twin.fast import layout as L
 
 SHORT = {"duration": 6.0, "warmup": 1.0}
@@ -60,6 +60,23 @@ CASES: dict[str, dict[str, Any]] = {
         action_type="multidiscrete",
         rules=("SPT", "SIRO"),
     ),
+    "t_continue_skip_noops_caps": dict(
+        overrides={**SHORT, "warmup": 2.0},
+        termination="t_continue",
+        rules=("SIRO", "SD", "FIFO"),
+        max_episode_steps=40,
+        skip_noops=True,
+    ),
+    "t_any_skip_noops_breakdowns_time_cap": dict(
+        scenario="breakdowns",
+        overrides={"duration": 12.0, "warmup": 1.0, "robots.mtbf": 2.0, "robots.mttr": 0.7},
+        termination="t_any",
+        action_type="multidiscrete",
+        rules=("SIRO", "LD"),
+        max_episode_time=9.0,
+        skip_noops=True,
+        threads=2,  # the same steps on two threads as on one (the default)
+    ),
 }
 
 
@@ -69,19 +86,24 @@ def _lists_to_array(values: np.ndarray, n_robots: int, fill: float = 0.0) -> np.
 
 
 def assert_infos_match(fast: dict[str, Any], simpy: dict[str, Any], n_robots: int) -> None:
-    for key in ("time", "tau", "gripping_rate", "line_seed"):
+    assert set(fast) == set(simpy)
+    for key in ("time", "tau", "gripping_rate", "line_seed", "skipped"):
         np.testing.assert_array_equal(fast[key], simpy[key], err_msg=key)
     deciding = np.zeros_like(fast["deciding"])
     for e, robots in enumerate(simpy["deciding"]):
         deciding[e, robots] = True
     np.testing.assert_array_equal(fast["deciding"], deciding)
-    np.testing.assert_array_equal(fast["picks"], _lists_to_array(simpy["picks"], n_robots))
-    np.testing.assert_array_equal(fast["options"], _lists_to_array(simpy["options"], n_robots))
+    for key in ("picks", "noops", "option_time", "candidates"):
+        want = _lists_to_array(simpy[key], n_robots)
+        np.testing.assert_array_equal(fast[key], want, err_msg=key)
+    masks = np.stack([np.asarray(m) for m in simpy["action_mask"]])
+    np.testing.assert_array_equal(fast["action_mask"], masks, err_msg="action_mask")
 
 
 def run_both(kwargs: dict[str, Any], n_envs: int, steps: int, seed: int) -> dict[str, int]:
     """Step both vector envs with the same random actions; returns what was covered."""
     fast = PickPlaceVectorEnv(num_envs=n_envs, **kwargs)
+    kwargs = {k: v for k, v in kwargs.items() if k != "threads"}
     simpy: Any = gym.vector.SyncVectorEnv([lambda: PickPlaceEnv(**kwargs) for _ in range(n_envs)])
     assert fast.single_action_space == simpy.single_action_space
     assert fast.single_observation_space == simpy.single_observation_space
@@ -91,7 +113,9 @@ def run_both(kwargs: dict[str, Any], n_envs: int, steps: int, seed: int) -> dict
     n_robots = fast.n_robots
     assert_infos_match(info_f, info_s, n_robots)
     rng = np.random.default_rng(seed)
-    seen = dict.fromkeys(("terminated", "truncated", "reward", "siro", "down", "boxes"), 0)
+    seen = dict.fromkeys(
+        ("terminated", "truncated", "reward", "siro", "down", "boxes", "skipped", "forced"), 0
+    )
     for step in range(steps):
         if kwargs.get("action_type") == "multidiscrete":
             actions = rng.integers(len(fast.rules), size=(n_envs, n_robots))
@@ -111,6 +135,8 @@ def run_both(kwargs: dict[str, Any], n_envs: int, steps: int, seed: int) -> dict
         seen["siro"] += int((gs[:, L.SIROIDX] > 0).sum())  # SIRO drew (not all-FIFO luck)
         seen["down"] += int(ist[:, :, L.DOWN].sum())  # robots down at this epoch
         seen["boxes"] += int((ist[:, :, L.BOXES] > 0).sum())  # boxes changed so far
+        seen["skipped"] += int(got[4]["skipped"].sum())
+        seen["forced"] += int((got[4]["candidates"].sum(axis=1) == 0).sum())
     return seen
 
 
@@ -123,6 +149,10 @@ def test_steps_match_the_simpy_vector_env_across_autoresets(case: str) -> None:
     assert seen["truncated"] > 0 if "caps" in case or "time_cap" in case else True
     assert seen["down"] > 0 if "breakdowns" in case else seen["down"] == 0
     assert seen["boxes"] > 0 if "bins" in case else seen["boxes"] == 0
+    if "skip_noops" in case:  # epochs without a choice were skipped, never returned
+        assert seen["skipped"] > 0 and seen["forced"] <= seen["terminated"] + seen["truncated"]
+    else:
+        assert seen["skipped"] == 0 and seen["forced"] > 0
 
 
 def test_streams_topped_up_and_parts_room_grown_give_the_same_steps(
@@ -224,7 +254,7 @@ def test_checker_style_seeding_types_and_spaces() -> None:
     obs_b, info_b = env.reset(seed=123)
     run_b = [env.step(a) for a in actions]
     np.testing.assert_array_equal(obs_a, obs_b)
-    np.testing.assert_equal(run_a, run_b)  # exact, nan equal to nan (info["options"])
+    np.testing.assert_equal(run_a, run_b)  # exact
     np.testing.assert_equal(info_a, info_b)
     other = env.reset(seed=124)[1]["line_seed"]  # env i is seeded with seed + i
     assert other[0] != info_a["line_seed"][0]
@@ -252,7 +282,9 @@ def test_checker_style_seeding_types_and_spaces() -> None:
         ({"max_episode_steps": 0}, "max_episode_steps: 0 is not allowed"),
         ({"max_episode_time": -1.0}, "max_episode_time: -1.0 is not allowed"),
         ({"observation": "rgb"}, "observation: 'rgb' is not allowed"),
-        ({"reward_weights": (1.0,)}, "reward_weights: give two numbers"),
+        ({"reward_weights": (1.0,)}, "reward_weights: give two finite numbers"),
+        ({"threads": 0}, "threads: 0 is not allowed; give 1 to"),
+        ({"noop_penalti": 0.1}, "noop_penalti: not an environment option"),
         ({"render_mode": "human"}, "render_mode: 'human' is not allowed"),
     ],
 )

@@ -24,6 +24,7 @@ from pnp_twin.learning.envs.driver import (
     intrinsic_reward,
 )
 from pnp_twin.learning.envs.gym_env import PickPlaceEnv
+from pnp_twin.learning.envs.options import EnvOptions
 from pnp_twin.twin.camera import CHANNELS, BeltCamera
 
 ENV_ID = "pnp_twin/PickPlace-v0"
@@ -56,6 +57,14 @@ def __getattr__(name: str) -> Any:
         from pnp_twin.learning.envs.pz_parallel import PickPlaceParallel
 
         return PickPlaceParallel
+    if name == "PickPlaceVectorEnv":
+        from pnp_twin.learning.envs.vector_env import PickPlaceVectorEnv
+
+        return PickPlaceVectorEnv
+    if name == "PickPlaceParallelVectorEnv":
+        from pnp_twin.learning.envs.vector_marl import PickPlaceParallelVectorEnv
+
+        return PickPlaceParallelVectorEnv
     raise AttributeError(f"module 'pnp_twin.learning.envs' has no attribute {name!r}")
 
 
@@ -77,11 +86,14 @@ __all__ = [
     "BeltCamera",
     "EnvError",
     "EnvFactory",
+    "EnvOptions",
     "EpochDriver",
     "OptionResult",
     "PickPlaceAEC",
     "PickPlaceEnv",
     "PickPlaceParallel",
+    "PickPlaceParallelVectorEnv",
+    "PickPlaceVectorEnv",
     "extrinsic_reward",
     "intrinsic_reward",
     "make_env",

@@ -89,7 +89,38 @@ def render_line(driver: EpochDriver, mode: str | None) -> np.ndarray | str | Non
             cached = (line, render.background(line))
             driver._render_base = cached  # type: ignore[attr-defined]
         return render.frame(line, cached[1])
-    return render.text(driver.line, driver.gripping_rate())
+    text = render.text(driver.line, driver.gripping_rate())
+    if mode == "human":
+        print(text, flush=True)
+        return None
+    return text
+
+
+def rule_mask(k: int, choice: bool) -> np.ndarray:
+    """An agent's action mask over its K rules (int8, 1 = allowed): every rule when its
+    robot has a choice, else rule 0 alone (every rule gives the same NooP, or the robot is
+    not deciding and its action is ignored)."""
+    mask = np.zeros(k, dtype=np.int8)
+    if choice:
+        mask[:] = 1
+    else:
+        mask[0] = 1
+    return mask
+
+
+def joint_mask(masks: Sequence[np.ndarray]) -> np.ndarray:
+    """The mask of the joint Discrete(K**N) action from per-robot masks (robot 1 the most
+    significant digit): a joint action is allowed when each robot's digit is."""
+    out = np.ones(1, dtype=np.int8)
+    for m in masks:
+        out = (out[:, None] * m[None, :]).reshape(-1)
+    return out
+
+
+def team(rewards: Mapping[str, float]) -> dict[str, float]:
+    """Every agent's reward replaced by the sum of all (the ``team_reward`` option)."""
+    total = float(sum(rewards.values()))
+    return dict.fromkeys(rewards, total)
 
 
 def line_seed(rng: np.random.Generator, options: Mapping[str, Any] | None) -> int:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import logging
 import math
+from bisect import bisect_left
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from pnp_twin.learning.envs.defaults import NOOP_PENALTY, REWARD_WEIGHTS
 from pnp_twin.policies.base import SettableRules
 from pnp_twin.policies.registry import rule_names
 from pnp_twin.policies.rules import PAPER_RULES
@@ -70,7 +72,7 @@ def extrinsic_reward(option: OptionResult) -> float:
     return 0.0
 
 
-def intrinsic_reward(option: OptionResult, noop_penalty: float = 0.01) -> float:
+def intrinsic_reward(option: OptionResult, noop_penalty: float = NOOP_PENALTY) -> float:
     """The paper's eq. 2: ``-noop_penalty`` for a NooP, else 0."""
     return -noop_penalty if option.noop else 0.0
 
@@ -134,6 +136,8 @@ class EpochDriver:
             FIFO LIFO SIRO SD LD).
         channels: observation channels (1 to 3), see :class:`~twin.camera.BeltCamera`.
         overrides: dotted-path scenario overrides, e.g. ``{"feeder.rate": 12}``.
+        reward_weights, noop_penalty: the default weights of eq. 1 and eq. 2 and the NooP
+            penalty of :meth:`reward` and of :attr:`step_rewards`.
 
     The episode is the scenario's feeding time: :attr:`done` turns true at the first epoch
     at or after ``scenario.duration`` (no part is fed after it).
@@ -144,9 +148,17 @@ class EpochDriver:
     epoch) and ``d.reward(robot, weights, noop_penalty)`` its eq. 1 + eq. 2 reward.
     ``d.observe(None)`` is the whole belt, ``(C, H, W)`` = (C, 8, 64) on paper_baseline;
     ``d.observe(robot)`` the robot's workspace window, ``(C, H, w)``, a fixed width ``w``
-    (the widest workspace in cells; 14 on paper_baseline) from the cell holding its
+    (the widest workspace in cells; (1, 8, 7) on paper_baseline) from the cell holding its
     workspace start. Channels: 0 parts, 1 claimed parts, 2 busy robots' workspace columns
     (see :mod:`twin.camera`).
+
+    **Choices.** :attr:`candidates` counts, per robot of the epoch, the parts it could pick
+    now (0 for robots not deciding). A deciding robot with none takes a NooP whatever its
+    rule (claims by robots deciding before it in the same epoch can only take candidates
+    away, never add one), so its action changes nothing: :meth:`has_choice` is False.
+    ``act(..., skip_noops=True)`` answers such epochs itself and runs on to the next epoch
+    where a robot has a choice; :attr:`step_rewards`, :attr:`step_picks` and
+    :attr:`step_noops` then sum over every epoch the call passed.
     """
 
     def __init__(
@@ -157,8 +169,12 @@ class EpochDriver:
         rules: Sequence[str] = PAPER_RULES,
         channels: int = 1,
         overrides: Mapping[str, Any] | None = None,
+        reward_weights: tuple[float, float] = REWARD_WEIGHTS,
+        noop_penalty: float = NOOP_PENALTY,
     ) -> None:
         self.scenario = resolve_scenario(scenario, overrides, termination)
+        self.weights = (float(reward_weights[0]), float(reward_weights[1]))
+        self.noop_penalty = float(noop_penalty)
         self.rules = check_rules(rules)
         self.seed = self.scenario.seed if seed is None else seed
         self.n_robots = self.scenario.robots.count
@@ -181,11 +197,22 @@ class EpochDriver:
         self._total_picks = [0] * n
         self._passed = 0
         self._passed_picked = 0
+        self._first = 0  # the first part fed at or after the warm-up (the KPI window)
+        self.candidates = [0] * n
+        """Per robot: candidate parts at the current epoch (0 when not deciding)."""
+        self.step_rewards = [0.0] * n
+        """Per robot: eq. 1 + eq. 2 of its options that ended during the last :meth:`act`."""
+        self.step_noops = [0] * n
+        """Per robot: NooPs taken during the last :meth:`act` (forced ones included)."""
+        self.skipped = 0
+        """Epochs the last :meth:`act` answered itself (``skip_noops``)."""
         self._init = {
             "scenario": self.scenario,
             "seed": seed,
             "rules": self.rules,
             "channels": channels,
+            "reward_weights": self.weights,
+            "noop_penalty": self.noop_penalty,
         }
         self.history: list[dict[int, int]] = []
         """The actions since the last reset (what a copy replays)."""
@@ -213,7 +240,7 @@ class EpochDriver:
         driver is then exactly where the recorded one was. Returns the robots deciding."""
         self.reset(seed)
         for actions in history:
-            self.act(actions)
+            self._act_once(actions)
         return self.deciding
 
     # -- running -------------------------------------------------------------------------------
@@ -229,23 +256,81 @@ class EpochDriver:
         self._step_picks[:] = [0] * n
         self._total_picks[:] = [0] * n
         self._passed = self._passed_picked = 0
+        self.step_rewards[:] = [0.0] * n
+        self.step_noops[:] = [0] * n
+        self.skipped = 0
         self.steps = 0
         self.history = []
         self.policy = _RecordingRules(n, self._claims)
         self.line = Line(self.scenario, self.policy, seed=self.seed, hold=True)
         self.camera.attach(self.line.belt)
+        fed = self.line.belt.fed
+        self._first = self._passed = bisect_left(fed, self.scenario.warmup)
         log.debug(
             "episode of %s, seed %d, %s", self.scenario.name, self.seed, self.scenario.termination
         )
         self._advance()
         return self.deciding
 
-    def act(self, actions: Mapping[int, int]) -> list[int]:
+    def act(
+        self,
+        actions: Mapping[int, int],
+        skip_noops: bool = False,
+        auto: Sequence[int] = (),
+        until: float = math.inf,
+    ) -> list[int]:
         """Apply a rule index to each deciding robot, run to the next epoch; the robots then.
 
         Robots missing from ``actions`` keep their previous rule (FIFO at first); indices
-        for robots that are not deciding are ignored.
+        for robots that are not deciding are ignored. Epochs where no deciding robot waits
+        for an agent are answered at once (every robot keeps its rule) until one does, the
+        episode is over (:attr:`done`) or the time reaches ``until``: robots in ``auto``
+        never wait (their agents are gone), and with ``skip_noops`` only robots with a
+        choice (:meth:`has_choice`) do.
         """
+        n = self.n_robots
+        rewards, picks, noops = [0.0] * n, [0] * n, [0] * n
+        self.skipped = 0
+        while True:
+            self._act_once(actions)
+            for r in range(n):
+                rewards[r] += self.step_rewards[r]
+                picks[r] += self._step_picks[r]
+                noops[r] += self.step_noops[r]
+            if self.done or self.now >= until or self._needs_agent(skip_noops, auto):
+                break
+            actions = {}
+            self.skipped += 1
+        self.step_rewards[:] = rewards
+        self._step_picks[:] = picks
+        self.step_noops[:] = noops
+        return self.deciding
+
+    def skip_to_choice(
+        self, skip_noops: bool = True, auto: Sequence[int] = (), until: float = math.inf
+    ) -> list[int]:
+        """At an epoch where no robot outside ``auto`` needs an agent (see :meth:`act`),
+        run on as :meth:`act` does (after :meth:`reset`); else do nothing."""
+        self.skipped = 0
+        if self.done or self.now >= until or self._needs_agent(skip_noops, auto):
+            return self.deciding
+        act = self.act({}, skip_noops, auto, until)
+        self.skipped += 1
+        return act
+
+    def _needs_agent(self, skip_noops: bool, auto: Sequence[int]) -> bool:
+        """Whether a deciding robot outside ``auto`` waits for its agent's rule: any such
+        robot, or with ``skip_noops`` one with a choice."""
+        for r in self.deciding:
+            if r not in auto and (not skip_noops or self.candidates[r] > 0):
+                return True
+        return False
+
+    def has_choice(self, robot: int) -> bool:
+        """True when ``robot`` decides now and has a candidate part (its rule matters)."""
+        return self.candidates[robot] > 0
+
+    def _act_once(self, actions: Mapping[int, int]) -> list[int]:
         line = self.line
         if line is None:
             raise RuntimeError("EpochDriver.act() called before reset()")
@@ -285,6 +370,11 @@ class EpochDriver:
             step()
         self.deciding = sorted(pending)
         self._collect(now)
+        robots, candidates = line.robots, self.candidates
+        for r in range(self.n_robots):
+            candidates[r] = 0
+        for r in self.deciding:
+            candidates[r] = len(robots[r]._candidates(now)[0])
 
     def _collect(self, now: float) -> None:
         assert self.line is not None
@@ -299,16 +389,24 @@ class EpochDriver:
                 self._total_picks[r] += 1
                 claims[r] = -2  # this option picked its part
         decisions = rec.decisions
+        rewards, noops = self.step_rewards, self.step_noops
+        for r in range(self.n_robots):
+            rewards[r] = 0.0
+            noops[r] = 0
+        w_e, w_i, penalty = self.weights[0], self.weights[1], self.noop_penalty
         for r in self.deciding:
             start = self._started[r]
             if start != start:  # the first epoch: no option ended
                 continue
-            self._options[r] = OptionResult(
+            option = OptionResult(
                 picks=1 if claims[r] == -2 else 0,
                 duration=now - start,
                 noop=decisions[(r, NOOP)] > self._noops_before[r],
                 start=start,
             )
+            self._options[r] = option
+            noops[r] = int(option.noop)
+            rewards[r] = w_e * extrinsic_reward(option) + w_i * intrinsic_reward(option, penalty)
 
     # -- state --------------------------------------------------------------------------------
     @property
@@ -336,7 +434,9 @@ class EpochDriver:
         return list(self._total_picks)
 
     def gripping_rate(self) -> float:
-        """Percent of the parts that passed the last workspace's end so far that were picked."""
+        """The gripping rate so far over the command line's window: percent picked of the
+        parts fed at or after the warm-up that have passed the last workspace's end (0.0
+        until one has)."""
         line = self.line
         if line is None:
             return 0.0
@@ -347,8 +447,10 @@ class EpochDriver:
         for i in range(self._passed, n):
             if holder[i] >= 0:
                 picked += 1
-        self._passed, self._passed_picked = n, picked
-        return 100.0 * picked / n if n else 0.0
+        if n > self._passed:
+            self._passed, self._passed_picked = n, picked
+        seen = self._passed - self._first
+        return 100.0 * picked / seen if seen > 0 else 0.0
 
     def observe(self, robot: int | None = None) -> np.ndarray:
         """The belt image (C, H, W) when ``robot`` is None, else the robot's window (C, H, w)."""
@@ -362,13 +464,14 @@ class EpochDriver:
     def reward(
         self,
         robot: int,
-        weights: tuple[float, float] = (1.0, 1.0),
-        noop_penalty: float = 0.01,
+        weights: tuple[float, float] | None = None,
+        noop_penalty: float | None = None,
     ) -> float:
-        """Weighted eq. 1 + eq. 2 of the option that just ended for ``robot`` (0 if none)."""
+        """Weighted eq. 1 + eq. 2 of the option that just ended for ``robot`` (0 if none);
+        the driver's weights and penalty unless given."""
         option = self._options[robot]
         if option is None:
             return 0.0
-        return weights[0] * extrinsic_reward(option) + weights[1] * intrinsic_reward(
-            option, noop_penalty
-        )
+        w = self.weights if weights is None else weights
+        penalty = self.noop_penalty if noop_penalty is None else noop_penalty
+        return w[0] * extrinsic_reward(option) + w[1] * intrinsic_reward(option, penalty)

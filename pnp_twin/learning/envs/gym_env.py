@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, SupportsFloat
 
@@ -14,12 +15,14 @@ from pnp_twin.learning.envs.common import (
     EpisodeLimits,
     ObservationView,
     check_render_mode,
+    joint_mask,
     line_seed,
     render_line,
+    rule_mask,
 )
 from pnp_twin.learning.envs.driver import EnvError, EpochDriver
+from pnp_twin.learning.envs.options import env_options
 from pnp_twin.learning.envs.render import RENDER_FPS, RENDER_MODES
-from pnp_twin.policies.rules import PAPER_RULES
 from pnp_twin.twin.scenario import Scenario
 
 ACTION_TYPES = ("discrete", "multidiscrete")
@@ -43,6 +46,26 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
     means ``rules[k]``, by default the paper's ``FIFO LIFO SIRO SD LD`` (0..4). A robot that
     is not free at the epoch ignores its component (``info["deciding"]`` lists the robots
     that will use theirs at the next step).
+
+    ## Action masks
+    ``info["action_mask"]`` (int8, 1 = allowed) marks the actions that matter: a robot that
+    is deciding and has a candidate part may take any rule; for every other robot (not
+    deciding, or deciding with no candidate, so that any rule gives the same NooP) only
+    rule 0 is allowed. With ``"discrete"`` the mask has ``K**N`` entries (the joint
+    actions whose digits are all allowed; ``action_space.sample(mask)`` takes it); with
+    ``"multidiscrete"`` it is ``(N, K)``, one row per robot (``action_space.sample(
+    tuple(mask))``). :meth:`action_masks` returns it flat as bool, as sb3-contrib's
+    ``MaskablePPO`` asks. ``info["candidates"]`` counts each robot's candidate parts.
+    Every masked-out action is still accepted and behaves as the allowed one (no error).
+
+    ## Skipping forced NooPs
+    With ``skip_noops=True`` the env answers by itself every epoch at which no deciding
+    robot has a candidate (on paper_baseline about half of all epochs) and returns at the
+    next epoch where some robot has a choice (or at the episode's end): ``info["tau"]`` is
+    all the simulated time that passed, ``info["skipped"]`` the epochs answered, and the
+    step's reward sums every option that ended in between (the NooP penalties of the
+    skipped epochs included). :meth:`reset` skips to the first such epoch too (the
+    NooP penalties of the epochs it skips are not returned: a reset has no reward).
 
     ## Observation space
     ``Box(0, 1, (C, H, W), uint8)``: the belt as an occupancy image, W = 64 cells along the
@@ -92,7 +115,8 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
     ``render_mode="rgb_array"``: :meth:`render` returns the top view of the line as an
     ``(H, W, 3)`` uint8 frame (belt, workspaces, parts, claimed parts in their robot's
     colour, tools, bins; :mod:`pnp_twin.learning.envs.render`); ``"ansi"``: a text view of
-    the belt grid. ``metadata["render_fps"]`` is the frame rate a video of the steps plays
+    the belt grid; ``"human"``: that text printed to standard output (returns None).
+    ``metadata["render_fps"]`` is the frame rate a video of the steps plays
     at (one frame per decision epoch), so ``gymnasium.wrappers.RecordVideo`` works.
 
     ## Copies
@@ -101,26 +125,30 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
     original (for planning and search from a state).
 
     ## Info
+    The same keys in every env of this package (here per robot, 0-based; the PettingZoo
+    envs give each agent its own entry):
     ``tau``: simulated seconds the step took (discount by ``gamma**tau``); ``time``: the
-    simulated time now; ``picks``: parts gripped per robot during the step; ``deciding``:
-    0-based robots free at the new epoch; ``options``: per robot, the duration of the
-    option that ended (``nan`` if none); ``gripping_rate``: percent of the parts that have
-    passed the last workspace since the start that were picked.
+    simulated time now; ``picks``: parts gripped per robot during the step; ``noops``: NooPs
+    per robot during the step; ``deciding``: the 0-based robots free at the new epoch;
+    ``option_time``: per robot, the duration of its option that ended at the new epoch
+    (0.0 if none did); ``candidates``: per robot, its candidate parts now (0 when not
+    deciding); ``action_mask``: see above; ``skipped``: epochs the step answered by itself
+    (``skip_noops``); ``gripping_rate``: the command line's measure so far, percent picked
+    of the parts fed at or after the scenario's warm-up that have passed the last workspace
+    (0.0 until one has); ``line_seed``: the line's seed.
 
     ## Arguments
-    - ``scenario``: a Scenario, a scenario file path or a shipped name ("paper_baseline").
-    - ``overrides``: dotted-path scenario overrides, e.g. ``{"feeder.rate": 12}``.
-    - ``termination``: ``t_continue`` | ``t_all`` | ``t_any``; the scenario's when None.
-    - ``action_type``: ``"discrete"`` or ``"multidiscrete"``.
-    - ``rules``: rule names (any of FIFO LIFO SIRO SD LD SPT), default the paper's five.
-    - ``reward_weights``: (extrinsic, intrinsic) weights, default (1.0, 1.0).
-    - ``noop_penalty``: the NooP penalty of eq. 2, default 0.01.
-    - ``channels``: observation channels, 1 to 3 (default 1).
-    - ``max_episode_steps``: decision steps per episode (None: no step cap; the registered
-      spec adds 5000).
-    - ``max_episode_time``: simulated seconds per episode (truncation), None for none.
-    - ``observation``: ``"grid"`` (0/1 cells) or ``"image"`` (0/255, upscaled to >= 36 px).
-    - ``render_mode``: None, ``"rgb_array"`` or ``"ansi"``.
+    ``scenario`` (a Scenario, a scenario file path or a shipped name), ``action_type``
+    (``"discrete"`` or ``"multidiscrete"``), ``render_mode`` (None, ``"human"`` (prints the
+    text view), ``"rgb_array"`` or ``"ansi"``), and the options of
+    :class:`~pnp_twin.learning.envs.options.EnvOptions`, with their defaults there:
+    ``overrides``, ``termination`` (the scenario's when None), ``rules`` (any of FIFO LIFO
+    SIRO SD LD SPT; the paper's five), ``reward_weights`` (1.0, 1.0), ``noop_penalty``
+    0.01, ``channels`` 1, ``max_episode_steps`` (decision steps per episode; None: no step
+    cap; the registered spec adds 5000), ``max_episode_time`` (simulated seconds per
+    episode, truncation; None), ``observation`` (``"grid"`` or ``"image"``),
+    ``skip_noops`` (False). ``team_reward`` and ``mask_in_observation`` are accepted and
+    change nothing here (the reward is the team's already; the mask is in ``info``).
 
     ## Seeds
     ``reset(seed=s)`` seeds ``self.np_random``, which draws the line's seed, so the same
@@ -139,38 +167,29 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
     def __init__(
         self,
         scenario: str | Path | Scenario = "paper_baseline",
-        overrides: Mapping[str, Any] | None = None,
-        termination: str | None = None,
+        *,
         action_type: str = "discrete",
-        rules: Sequence[str] = PAPER_RULES,
-        reward_weights: tuple[float, float] = (1.0, 1.0),
-        noop_penalty: float = 0.01,
-        channels: int = 1,
-        max_episode_steps: int | None = None,
-        max_episode_time: float | None = None,
-        observation: str = "grid",
         render_mode: str | None = None,
+        **options: Any,
     ) -> None:
         if action_type not in ACTION_TYPES:
             raise EnvError(
                 f"action_type: {action_type!r} is not allowed; use one of {', '.join(ACTION_TYPES)}"
             )
-        self.limits = EpisodeLimits.check(max_episode_steps, max_episode_time)
+        self.options = opts = env_options(None, {"scenario": scenario, **options})
+        self.limits = EpisodeLimits.check(opts.step_cap, opts.max_episode_time)
         self.render_mode = check_render_mode(render_mode, RENDER_MODES)
-        if len(reward_weights) != 2:
-            raise EnvError("reward_weights: give two numbers (extrinsic, intrinsic)")
-        self.driver = EpochDriver(
-            scenario, termination=termination, rules=rules, channels=channels, overrides=overrides
-        )
+        self.driver = EpochDriver(**opts.driver_kwargs())
         self.scenario = self.driver.scenario
         self.rules = self.driver.rules
         self.n_robots = n = self.driver.n_robots
         k = len(self.rules)
         self.action_type = action_type
-        self.reward_weights = (float(reward_weights[0]), float(reward_weights[1]))
-        self.noop_penalty = float(noop_penalty)
-        self.max_episode_steps = max_episode_steps
-        self.view = ObservationView(observation, self.driver.camera.shape)
+        self.reward_weights = opts.reward_weights
+        self.noop_penalty = opts.noop_penalty
+        self.skip_noops = opts.skip_noops
+        self.max_episode_steps = opts.step_cap
+        self.view = ObservationView(opts.observation, self.driver.camera.shape)
         self.action_space: spaces.Space[Any]
         if action_type == "discrete":
             self.action_space = spaces.Discrete(k**n)
@@ -213,10 +232,12 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        self.driver.reset(line_seed(self.np_random, options))
+        driver = self.driver
+        driver.reset(line_seed(self.np_random, options))
+        driver.skip_to_choice(self.skip_noops, until=self._until)
         self._steps = 0
         self._over = False
-        return self._get_obs(), self._get_info(0.0)
+        return self._get_obs(), self._get_info(driver.now)
 
     def step(self, action: Any) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
         if self._over:
@@ -224,16 +245,29 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
         driver = self.driver
         before = driver.now
         choice = self.decode(action)
-        deciding = driver.act({r: choice[r] for r in driver.deciding})
+        driver.act({r: choice[r] for r in driver.deciding}, self.skip_noops, until=self._until)
         self._steps += 1
-        weights, penalty = self.reward_weights, self.noop_penalty
-        reward = 0.0
-        for r in deciding:
-            reward += driver.reward(r, weights, penalty)
+        reward = float(sum(driver.step_rewards))
         terminated = driver.done
         truncated = not terminated and self.limits.reached(self._steps, driver.now)
         self._over = terminated or truncated
         return self._get_obs(), reward, terminated, truncated, self._get_info(driver.now - before)
+
+    @property
+    def _until(self) -> float:
+        return math.inf if self.limits.time is None else self.limits.time
+
+    def action_masks(self) -> np.ndarray:
+        """The action mask now, flat and bool (sb3-contrib's ``MaskablePPO`` convention;
+        for ``"multidiscrete"`` the robots' rows one after the other)."""
+        return self._mask().reshape(-1).astype(bool)
+
+    def _mask(self) -> np.ndarray:
+        driver, k = self.driver, self._k
+        rows = [rule_mask(k, driver.has_choice(r)) for r in range(self.n_robots)]
+        if self.action_type == "discrete":
+            return joint_mask(rows)
+        return np.stack(rows)
 
     def render(self) -> np.ndarray | str | None:  # type: ignore[override]
         """The frame of ``render_mode`` (see the class docstring); None without one."""
@@ -244,7 +278,7 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
 
     def _get_info(self, tau: float) -> dict[str, Any]:
         driver = self.driver
-        options = [float("nan")] * self.n_robots
+        options = [0.0] * self.n_robots
         for r in driver.deciding:
             o = driver.option(r)
             if o is not None:
@@ -253,8 +287,12 @@ class PickPlaceEnv(gym.Env[np.ndarray, Any]):
             "tau": tau,
             "time": driver.now,
             "picks": driver.step_picks,
+            "noops": list(driver.step_noops),
             "deciding": list(driver.deciding),
-            "options": options,
+            "option_time": options,
+            "candidates": list(driver.candidates),
+            "action_mask": self._mask(),
+            "skipped": driver.skipped,
             "gripping_rate": driver.gripping_rate(),
             "line_seed": driver.seed,
         }

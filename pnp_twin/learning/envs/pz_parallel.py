@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import math
 from pathlib import Path
 from typing import Any
 
@@ -16,11 +16,13 @@ from pnp_twin.learning.envs.common import (
     check_render_mode,
     line_seed,
     render_line,
+    rule_mask,
+    team,
 )
 from pnp_twin.learning.envs.driver import EnvError, EpochDriver, is_rule_index
+from pnp_twin.learning.envs.options import env_options
 from pnp_twin.learning.envs.pz_aec import agent_name
 from pnp_twin.learning.envs.render import RENDER_FPS, RENDER_MODES
-from pnp_twin.policies.rules import PAPER_RULES
 from pnp_twin.twin.scenario import Scenario
 
 
@@ -36,47 +38,64 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
     ``infos[agent]["deciding"]`` says whose actions the next step will use.
 
     ## Agents, action and observation spaces
-    As :class:`~pnp_twin.learning.envs.pz_aec.PickPlaceAEC`: ``robot_1`` .. ``robot_N`` upstream
-    first;
-    ``Discrete(K)`` rule index; the robot's workspace window ``Box(0, 1, (C, H, w), uint8)``;
-    :meth:`state` the whole belt image.
+    As :class:`~pnp_twin.learning.envs.pz_aec.PickPlaceAEC`: ``robot_1`` .. ``robot_N``
+    upstream first; ``Discrete(K)`` rule index; the robot's workspace window
+    ``Box(0, 1, (C, H, w), uint8)`` ((1, 8, 7) on paper_baseline); :meth:`state` the whole
+    belt image.
+
+    ## Action masks
+    ``infos[agent]["action_mask"]`` (int8 over the K rules; in the observation too with
+    ``mask_in_observation=True``, PettingZoo's dict ``{"observation", "action_mask"}``):
+    all 1 when the agent's robot decides and has a candidate part, else only rule 0 (its
+    action changes nothing: it is not deciding, or every rule gives the same NooP).
+
+    ## Skipping forced NooPs
+    With ``skip_noops=True`` a step runs on past the epochs where no deciding robot has a
+    candidate: ``infos[agent]["tau"]`` is all the time that passed, ``skipped`` the epochs
+    passed, and each agent's reward sums its options that ended in between.
 
     ## Rewards
-    An agent whose option ended at the new epoch gets ``w_e * R_e + w_i * R_i`` (eq. 1:
+    An agent whose option ended during the step gets ``w_e * R_e + w_i * R_i`` (eq. 1:
     picks per second of the option, 0 if none; eq. 2: ``-noop_penalty`` for a NooP); the
-    others get 0 that step.
+    others get 0 that step. With ``team_reward=True`` every agent gets the sum over all
+    agents (a shared team reward).
 
     ## Info
-    Per agent: ``tau`` the simulated seconds of the step (under t_all also the duration of
-    every option that ended), ``option_time`` the duration of its option that ended (0.0 if
-    none did), ``picks`` its grips during the step, ``deciding`` whether it is free at the
-    new epoch, ``time`` and ``gripping_rate`` (percent, so far).
+    The keys of every env of this package (see ``PickPlaceEnv``), per agent: ``tau`` the
+    simulated seconds of the step (under t_all also the duration of every option that
+    ended), ``option_time`` the duration of its option that ended (0.0 if none did),
+    ``picks`` and ``noops`` its grips and NooPs during the step, ``deciding`` whether its
+    robot is free at the new epoch (its action is used at the next step), ``candidates``,
+    ``action_mask``, ``skipped``, ``time``, ``gripping_rate`` (percent over the command
+    line's window: parts fed after the warm-up) and ``line_seed``.
 
     ## Episode end
     All agents terminate when the simulated time reaches the scenario's ``duration``; all
-    are truncated after ``max_episode_steps`` steps or at the first epoch after
-    ``max_episode_time`` simulated seconds (None: no cap, the default; a directly built
-    env, like the Gymnasium one, ends at ``duration`` unless capped). Options still running
-    then earn nothing. Stepping after the end raises :class:`EnvError`; call ``reset()``.
+    are truncated after ``max_episode_steps`` (or ``max_cycles``, PettingZoo's name) steps
+    or at the first epoch after ``max_episode_time`` simulated seconds (None: no cap, the
+    default). Options still running then earn nothing. Stepping after the end raises
+    :class:`EnvError`; call ``reset()``.
 
     ## Seeds
     ``reset(seed=s)`` seeds the generator that draws the line's seed;
     ``reset(options={"line_seed": k})`` runs the part stream of ``pnp-twin run --seed k``.
 
     ## Rendering and copies
-    ``render_mode`` ``"rgb_array"`` (the top view of the line) or ``"ansi"`` (the belt grid
-    as text), at ``metadata["render_fps"]``; ``copy.deepcopy`` and ``pickle`` replay the seed
-    and the actions, so a copy continues exactly as the original. ``observation="image"``
-    gives 0/255 windows upscaled to sides of at least 36 pixels (see ``PickPlaceEnv``).
-    ``agents`` is empty once the episode is over.
+    ``render_mode`` ``"human"`` (the belt grid printed as text), ``"rgb_array"`` (the top
+    view of the line) or ``"ansi"`` (the text), at ``metadata["render_fps"]``;
+    ``copy.deepcopy`` and ``pickle`` replay the seed and the actions, so a copy continues
+    exactly as the original. ``observation="image"`` gives 0/255 windows upscaled to sides
+    of at least 36 pixels (see ``PickPlaceEnv``). ``agents`` is empty once the episode is
+    over.
 
     ## Arguments
-    ``scenario``, ``overrides``, ``termination`` (default ``t_all``), ``rules``,
-    ``reward_weights``, ``noop_penalty``, ``channels``, ``max_episode_steps``: as for
-    :class:`~pnp_twin.learning.envs.gym_env.PickPlaceEnv`.
+    ``scenario``, ``render_mode`` and the options of
+    :class:`~pnp_twin.learning.envs.options.EnvOptions` (``termination`` defaults to
+    ``t_all`` here).
 
     ## Version history
-    - v0: initial version.
+    - v0: initial version (masks, ``skip_noops``, ``team_reward``, ``max_cycles`` and the
+      ``human`` mode added without changing the dynamics).
     """
 
     metadata = {
@@ -88,35 +107,36 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
     def __init__(
         self,
         scenario: str | Path | Scenario = "paper_baseline",
-        overrides: Mapping[str, Any] | None = None,
-        termination: str | None = "t_all",
-        rules: Sequence[str] = PAPER_RULES,
-        reward_weights: tuple[float, float] = (1.0, 1.0),
-        noop_penalty: float = 0.01,
-        channels: int = 1,
-        max_episode_steps: int | None = None,
-        max_episode_time: float | None = None,
-        observation: str = "grid",
+        *,
         render_mode: str | None = None,
+        **options: Any,
     ) -> None:
-        self.limits = EpisodeLimits.check(max_episode_steps, max_episode_time)
+        self.options = opts = env_options("t_all", {"scenario": scenario, **options})
+        self.limits = EpisodeLimits.check(opts.step_cap, opts.max_episode_time)
         self.render_mode = check_render_mode(render_mode, RENDER_MODES)
-        self.driver = EpochDriver(
-            scenario, termination=termination, rules=rules, channels=channels, overrides=overrides
-        )
+        self.driver = EpochDriver(**opts.driver_kwargs())
         self.scenario = self.driver.scenario
         self.rules = self.driver.rules
-        self.reward_weights = (float(reward_weights[0]), float(reward_weights[1]))
-        self.noop_penalty = float(noop_penalty)
-        self.max_episode_steps = max_episode_steps
+        self.reward_weights = opts.reward_weights
+        self.noop_penalty = opts.noop_penalty
+        self.max_episode_steps = opts.step_cap
         self.possible_agents = [agent_name(r) for r in range(self.driver.n_robots)]
         camera = self.driver.camera
-        self.view = ObservationView(observation, camera.window_shape)
-        self._observation_space = self.view.space
-        self._action_space: spaces.Discrete = spaces.Discrete(len(self.rules))
+        self.view = ObservationView(opts.observation, camera.window_shape)
+        k = len(self.rules)
+        self._observation_space: spaces.Space[Any] = self.view.space
+        if opts.mask_in_observation:
+            self._observation_space = spaces.Dict(
+                {
+                    "observation": self.view.space,
+                    "action_mask": spaces.Box(0, 1, (k,), dtype=np.int8),
+                }
+            )
+        self._action_space: spaces.Discrete = spaces.Discrete(k)
         self.state_space = spaces.Box(0, 1, camera.shape, dtype=np.uint8)
         self.agents: list[str] = []
         self._seed_rng = np.random.default_rng()
+        self._steps = 0
 
     def observation_space(self, agent: str) -> spaces.Space[Any]:
         return self._observation_space
@@ -129,9 +149,16 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
     ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
         if seed is not None:
             self._seed_rng = np.random.default_rng(seed)
-        self.driver.reset(line_seed(self._seed_rng, options))
+        driver = self.driver
+        driver.reset(line_seed(self._seed_rng, options))
+        driver.skip_to_choice(self.options.skip_noops, until=self._until)
+        self._steps = 0
         self.agents = list(self.possible_agents)
-        return self._observations(), self._infos(0.0)
+        return self._observations(), self._infos(driver.now)
+
+    @property
+    def _until(self) -> float:
+        return math.inf if self.limits.time is None else self.limits.time
 
     def step(
         self, actions: dict[str, int]
@@ -157,11 +184,14 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
                     f"0..{len(self.rules) - 1}"
                 )
             chosen[r] = int(action)
-        driver.act(chosen)
-        weights, penalty = self.reward_weights, self.noop_penalty
-        rewards = {a: driver.reward(r, weights, penalty) for r, a in enumerate(self.agents)}
+        driver.act(chosen, self.options.skip_noops, until=self._until)
+        self._steps += 1
+        got = driver.step_rewards
+        rewards = {a: got[r] for r, a in enumerate(self.agents)}
+        if self.options.team_reward:
+            rewards = team(rewards)
         terminated = driver.done
-        truncated = not terminated and self.limits.reached(driver.steps, driver.now)
+        truncated = not terminated and self.limits.reached(self._steps, driver.now)
         observations, infos = self._observations(), self._infos(driver.now - before)
         terminations = dict.fromkeys(self.agents, terminated)
         truncations = dict.fromkeys(self.agents, truncated)
@@ -169,26 +199,39 @@ class PickPlaceParallel(ParallelEnv[str, np.ndarray, int]):
             self.agents = []
         return observations, rewards, terminations, truncations, infos
 
-    def _observations(self) -> dict[str, np.ndarray]:
+    def _observations(self) -> dict[str, Any]:
         observe = self.driver.observe
         view = self.view
+        if self.options.mask_in_observation:
+            return {
+                a: {"observation": view(observe(r)), "action_mask": self._mask(r)}
+                for r, a in enumerate(self.possible_agents)
+            }
         return {a: view(observe(r)) for r, a in enumerate(self.possible_agents)}
+
+    def _mask(self, robot: int) -> np.ndarray:
+        return rule_mask(len(self.rules), self.driver.has_choice(robot))
 
     def _infos(self, tau: float) -> dict[str, dict[str, Any]]:
         driver = self.driver
         deciding = set(driver.deciding)
-        picks = driver.step_picks
+        picks, noops = driver.step_picks, driver.step_noops
         now, rate = driver.now, driver.gripping_rate()
         out = {}
         for r, a in enumerate(self.possible_agents):
             option = driver.option(r) if r in deciding else None
             out[a] = {
                 "tau": tau,
-                "option_time": 0.0 if option is None else option.duration,
-                "picks": picks[r],
-                "deciding": r in deciding,
                 "time": now,
+                "picks": picks[r],
+                "noops": noops[r],
+                "deciding": r in deciding,
+                "option_time": 0.0 if option is None else option.duration,
+                "candidates": driver.candidates[r],
+                "action_mask": self._mask(r),
+                "skipped": driver.skipped,
                 "gripping_rate": rate,
+                "line_seed": driver.seed,
             }
         return out
 

@@ -7,10 +7,10 @@ each robot's tool is a filled square in its colour (a black centre while it is d
 by a line to the part it is going for; bins are outlined boxes above the belt. The size
 follows the belt: :data:`PX_PER_M` pixels per metre (about 800 x 180 px on paper_baseline).
 
-``ansi`` (:func:`text`): one header line (simulated time, free robots, gripping rate) and the
-belt's observation grid, one text row per grid row with the upper (bin) edge on top: ``.``
-empty, ``o`` a part, ``1``..``9`` a part claimed by that robot; a ruler line marks the
-workspaces.
+``ansi`` (:func:`text`), also printed by ``human``: one header line (simulated time, free
+robots, gripping rate) and the belt's observation grid, one text row per grid row with the
+upper (bin) edge on top: ``.`` empty, ``o`` a part, ``1``..``9`` a part claimed by that robot;
+a ruler line marks the workspaces.
 
 Both read the line (belt, robots, gateway) and never change it.
 """
@@ -25,7 +25,9 @@ import numpy as np
 if TYPE_CHECKING:
     from pnp_twin.twin.line import Line
 
-RENDER_MODES = ["rgb_array", "ansi"]
+RENDER_MODES = ["human", "rgb_array", "ansi"]
+"""``human`` prints the ``ansi`` text view to standard output at each :meth:`render` (and
+returns None, as Gymnasium and PettingZoo ask)."""
 RENDER_FPS = 10
 """Frames per second a video of the decision epochs plays at (one frame per env step)."""
 PX_PER_M = 320

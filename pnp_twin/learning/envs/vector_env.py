@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import logging
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -15,10 +16,12 @@ from gymnasium.vector.utils import batch_space
 from pnp_twin.learning.envs.common import EpisodeLimits, ObservationView, line_seed
 from pnp_twin.learning.envs.driver import EnvError, check_rules, resolve_scenario
 from pnp_twin.learning.envs.gym_env import ACTION_TYPES
-from pnp_twin.policies.rules import PAPER_RULES
+from pnp_twin.learning.envs.options import env_options
 from pnp_twin.twin.camera import CHANNELS
 from pnp_twin.twin.fast import layout as L
 from pnp_twin.twin.scenario import Scenario
+
+log = logging.getLogger(__name__)
 
 FAST_RULES = L.RULE_NAMES[:-1]
 """The rules the compiled engine runs (FIFO LIFO SIRO SD LD SPT)."""
@@ -43,16 +46,24 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
       None draws fresh entropy); each env's own generator draws its line seeds as
       ``PickPlaceEnv.reset`` does. ``options={"line_seed": k}`` runs line seed ``k`` in
       every env; ``options={"reset_mask": mask}`` resets only the envs in ``mask``.
-    - ``info``: arrays over envs, each with Gymnasium's ``_key`` mask: ``time``, ``tau``,
-      ``line_seed``, ``gripping_rate`` (num_envs,); ``deciding`` (bool), ``picks`` and
-      ``options`` (num_envs, robots).
+    - ``info``: ``PickPlaceEnv``'s keys as arrays over envs, each with Gymnasium's ``_key``
+      mask: ``time``, ``tau``, ``line_seed``, ``gripping_rate``, ``skipped`` (num_envs,);
+      ``deciding`` (bool), ``picks``, ``noops``, ``option_time`` and ``candidates``
+      (num_envs, robots); ``action_mask`` (num_envs, K**N) for ``"discrete"`` actions,
+      (num_envs, N, K) for ``"multidiscrete"``, int8 as ``PickPlaceEnv``'s.
+    - ``skip_noops=True`` skips the epochs where no deciding robot has a choice, exactly as
+      ``PickPlaceEnv`` does (in the compiled step).
 
-    Arguments as ``PickPlaceEnv`` (``scenario``, ``overrides``, ``termination``,
-    ``action_type``, ``rules`` among FIFO LIFO SIRO SD LD SPT, ``reward_weights``,
-    ``noop_penalty``, ``channels``, ``max_episode_steps``, ``max_episode_time``,
-    ``observation``), plus ``num_envs`` and ``copy`` (return copies of the observation
-    buffer, as ``SyncVectorEnv(copy=True)``; False returns the buffer the next step
-    overwrites). No rendering. ``gymnasium.make_vec("pnp_twin/PickPlace-v0", num_envs=N,
+    Arguments as ``PickPlaceEnv`` (``scenario``, ``action_type`` and the options of
+    :class:`~pnp_twin.learning.envs.options.EnvOptions`; ``rules`` among FIFO LIFO SIRO SD
+    LD SPT), plus ``num_envs``, ``copy`` (return copies of the observation buffer, as
+    ``SyncVectorEnv(copy=True)``; False returns the buffer the next step overwrites) and
+    ``threads`` (numba threads per step; None: one, which on a busy machine is faster than
+    two, see :mod:`pnp_twin.learning.vector.batch`; give 2 on cores of your own). No rendering.
+
+    The first use compiles the step (about a minute of CPU; once per change of the code,
+    then read from numba's on-disk cache); a log line at INFO says so.
+    ``gymnasium.make_vec("pnp_twin/PickPlace-v0", num_envs=N,
     vectorization_mode="vector_entry_point")`` builds it with the spec's 5000-step cap
     (applied as ``PickPlaceEnv(max_episode_steps=5000)`` applies it: an episode that
     terminates on the cap's step is not also truncated, as Gymnasium's TimeLimit marks it).
@@ -64,33 +75,30 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self,
         num_envs: int = 1,
         scenario: str | Path | Scenario = "paper_baseline",
-        overrides: Mapping[str, Any] | None = None,
-        termination: str | None = None,
+        *,
         action_type: str = "discrete",
-        rules: Sequence[str] = PAPER_RULES,
-        reward_weights: tuple[float, float] = (1.0, 1.0),
-        noop_penalty: float = 0.01,
-        channels: int = 1,
-        max_episode_steps: int | None = None,
-        max_episode_time: float | None = None,
-        observation: str = "grid",
         copy: bool = True,
+        threads: int | None = None,
         render_mode: str | None = None,
+        **options: Any,
     ) -> None:
-        from pnp_twin.twin.fast import vector as V
-        from pnp_twin.twin.fast.batch import LineBatch
+        log.info("compiled vector env: the first use compiles its step (about a minute)")
+        from pnp_twin.learning.vector import step as V
+        from pnp_twin.learning.vector.batch import LineBatch
 
-        n = _check_args(num_envs, action_type, channels, reward_weights, render_mode)
-        limits = EpisodeLimits.check(max_episode_steps, max_episode_time)
-        self.scenario = resolve_scenario(scenario, overrides, termination)
-        self.rules = _fast_rules(rules)
+        opts = env_options(None, {"scenario": scenario, **options})
+        self.options = opts
+        n = _check_args(num_envs, action_type, opts.channels, render_mode)
+        limits = EpisodeLimits.check(opts.step_cap, opts.max_episode_time)
+        self.scenario = resolve_scenario(opts.scenario, opts.overrides, opts.termination)
+        self.rules = _fast_rules(opts.rules)
         self.num_envs = n
         self.copy = copy
         self.render_mode = None
         self.action_type = action_type
         self.n_robots = r = self.scenario.robots.count
-        self.reward_weights = (float(reward_weights[0]), float(reward_weights[1]))
-        self.noop_penalty = float(noop_penalty)
+        self.reward_weights = opts.reward_weights
+        self.noop_penalty = opts.noop_penalty
         params = {
             V.DURATION: self.scenario.duration,
             V.MAX_TIME: np.inf if limits.time is None else limits.time,
@@ -98,10 +106,14 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             V.W_INT: self.reward_weights[1],
             V.PENALTY: self.noop_penalty,
         }
-        self.batch = LineBatch(
-            self.scenario, n, channels, params, limits.steps or 0, "SIRO" in self.rules
-        )
-        self.view = ObservationView(observation, self.batch.shape)
+        try:
+            self.batch = LineBatch(
+                self.scenario, n, opts.channels, params, limits.steps or 0,
+                "SIRO" in self.rules, opts.skip_noops, threads,
+            )  # fmt: skip
+        except ValueError as e:
+            raise EnvError(str(e)) from None
+        self.view = ObservationView(opts.observation, self.batch.shape)
         k = len(self.rules)
         self.single_observation_space = self.view.space
         self.observation_space = batch_space(self.single_observation_space, n)
@@ -117,9 +129,12 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._table: np.ndarray | None = None
         if action_type == "discrete" and k**r <= 1 << 16:
             self._table = (np.arange(k**r)[:, None] // self._powers) % k
+        self._masks: np.ndarray | None = None  # action_masks(): one joint mask per pattern
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._seeds = np.zeros(n, dtype=np.int64)
         self._autoreset = np.zeros(n, dtype=np.bool_)
+        self.last_reset = self._autoreset
+        """The envs the last :meth:`step` reset (Gymnasium's NEXT_STEP autoreset)."""
         self._started = False
 
     # -- the API ----------------------------------------------------------------------------
@@ -151,6 +166,7 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             raise EnvError("step: the environments are not started; call reset()")
         codes = self._decode(actions)
         fresh = self._autoreset
+        self.last_reset = fresh
         for e in np.flatnonzero(fresh).tolist():
             self._load(e, line_seed(self._rng(e), None))
         self._run(codes, fresh, act=True)
@@ -185,6 +201,27 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         """The kernel's rule codes per env and robot."""
         return self._codes[self.decode(actions)]
 
+    def action_masks(self) -> np.ndarray:
+        """Every env's action mask now, as ``PickPlaceEnv``'s: (num_envs, K**N) int8 for
+        ``"discrete"`` actions, (num_envs, N, K) for ``"multidiscrete"``."""
+        n, k, r = self.num_envs, len(self.rules), self.n_robots
+        choice = self.batch.cand > 0
+        if self.action_type == "discrete" and self._table is not None and 2**r * k**r <= 1 << 22:
+            if self._masks is None:  # the joint mask of each pattern of robots with a choice
+                patterns = (np.arange(2**r)[:, None] >> np.arange(r)) & 1  # (2**r, r)
+                free = (self._table[None, :, :] == 0) | (patterns[:, None, :] == 1)
+                self._masks = free.all(axis=2).astype(np.int8)  # (2**r, K**N)
+            return self._masks[choice @ (1 << np.arange(r))]
+        rows = np.zeros((n, r, k), dtype=np.int8)
+        rows[:, :, 0] = 1
+        rows[choice] = 1
+        if self.action_type != "discrete":
+            return rows
+        out = np.ones((n, 1), dtype=np.int8)
+        for r in range(self.n_robots):
+            out = (out[:, :, None] * rows[:, r, None, :]).reshape(n, -1)
+        return out
+
     # -- helpers ----------------------------------------------------------------------------
     def _rng(self, e: int) -> np.random.Generator:
         rng = self._rngs[e]
@@ -196,7 +233,7 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self.batch.load(e, seed)
 
     def _run(self, codes: np.ndarray, fresh: np.ndarray, act: bool = False) -> None:
-        from pnp_twin.twin.fast.vector import ACT, RESET, SKIP
+        from pnp_twin.learning.vector.step import ACT, RESET, SKIP
 
         mode = np.where(fresh, RESET, ACT if act else SKIP).astype(np.int8)
         self.batch.step(codes, mode)
@@ -214,8 +251,12 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             "tau": b.tau.copy(),
             "time": b.now.copy(),
             "picks": b.picks.copy(),
+            "noops": b.noops.copy(),
             "deciding": b.deciding,
-            "options": b.options.copy(),
+            "option_time": b.options.copy(),
+            "candidates": b.cand.copy(),
+            "action_mask": self.action_masks(),
+            "skipped": b.skipped.copy(),
             "gripping_rate": b.grip.copy(),
             "line_seed": self._seeds.copy(),
         }
@@ -228,7 +269,6 @@ def _check_args(
     num_envs: int,
     action_type: str,
     channels: int,
-    reward_weights: Sequence[float],
     render_mode: str | None,
 ) -> int:
     """The constructor's argument checks that need no scenario; returns num_envs."""
@@ -243,8 +283,6 @@ def _check_args(
             f"channels: {channels!r} is not allowed; give 1 to {len(CHANNELS)} "
             f"({', '.join(CHANNELS)})"
         )
-    if len(reward_weights) != 2:
-        raise EnvError("reward_weights: give two numbers (extrinsic, intrinsic)")
     if render_mode is not None:
         raise EnvError(f"render_mode: {render_mode!r} is not allowed; the vector env has none")
     return int(num_envs)

@@ -1,0 +1,246 @@
+"""Many runs of one scenario in hold mode, as batched arrays (the vector environment's state).
+
+:class:`LineBatch` holds :class:`~pnp_twin.twin.fast.engine.FastLine`'s arrays with a leading
+line axis and steps them all with :func:`pnp_twin.learning.vector.step.step_lines`.
+:meth:`LineBatch.load` gives line e a fresh run of a seed (the same seed split, part stream
+and pre-drawn streams as ``FastLine(scenario, seed=seed)``). The pre-drawn SIRO draws and
+breakdown exponentials are topped up from the run's own generators before a step whenever
+fewer than a safe margin remain (numpy draws the same numbers in two calls as in one), so a
+long episode never runs out; should a line still run dry, :meth:`LineBatch.step` raises one
+clear line.
+
+**Threads.** A step runs its lines in chunks on numba's threads and returns when the
+slowest thread is done: on a machine whose cores are busy with other work, a second thread
+that gets no core makes the whole step wait for it (and spins meanwhile). Measured side by
+side, interleaved, on the project's 2-core machine shared with other jobs (load average 13,
+``python bench/bench_vector_threads.py --envs 8,32,128,512 --rounds 5 --steps 8000``), two
+threads gave 0.04x, 0.13x, 0.07x and 0.41x the env steps per wall second of one thread for
+8, 32, 128 and 512 lines (and 4 to 25x fewer per CPU second); on the same machine idle they
+gave 1.4x at 1,024 lines (README). So a batch uses :data:`DEFAULT_THREADS` (one) unless
+``threads`` asks for more: give ``threads=2`` (or more) only on cores that are yours, with a
+few hundred lines or more.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numba
+import numpy as np
+
+from pnp_twin.learning.vector import step as V
+from pnp_twin.twin.camera import BeltCamera
+from pnp_twin.twin.fast import layout as L
+from pnp_twin.twin.fast.engine import FastLine
+from pnp_twin.twin.feeder import Feeder
+from pnp_twin.twin.plan import ARRIVALS, FIRST_ROBOT, LATERAL, POLICY, LinePlan
+from pnp_twin.twin.scenario import Scenario
+
+SIRO_ROOM, SIRO_MARGIN = 2048, 256
+"""Pre-drawn SIRO draws per line; topped up when fewer than the margin remain (a step
+draws about one per deciding robot)."""
+EXP_ROOM, EXP_MARGIN = 64, 16
+"""Pre-drawn breakdown exponentials per robot; a step draws at most a few per robot."""
+PARTS_SLACK, PARTS_PAD = 1.25, 256
+"""Room for parts per line: this much more than the stream at hand (grown when needed)."""
+DEFAULT_THREADS = 1
+"""numba threads per step unless asked (see the module docstring: never slower than two)."""
+
+
+class StreamsExhausted(RuntimeError):
+    """A line used up its pre-drawn random draws within one step (never expected)."""
+
+
+class LineBatch:
+    """``n`` runs of ``scenario`` in hold mode, one row of every state array per run.
+
+    ``params`` fills :data:`pnp_twin.learning.vector.step.N_EF` episode floats (see the
+    column names there), ``max_steps`` the step cap (0: none); ``channels`` the
+    observation's channels; ``skip_noops`` runs past epochs where no deciding robot has a
+    candidate; ``threads`` the numba threads a step uses (None: :data:`DEFAULT_THREADS`).
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        n: int,
+        channels: int,
+        params: dict[int, float],
+        max_steps: int,
+        siro: bool,
+        skip_noops: bool = False,
+        threads: int | None = None,
+    ) -> None:
+        self.scenario = scenario
+        self.n = n
+        template = FastLine(scenario, rules=["FIFO"], hold=True)
+        self.plan = template.plan
+        self.fp, self.ip0, self.gp, self.gi = template.fp, template.ip, template.gp, template.gi
+        self.n_robots = r = len(template.specs)
+        self.siro = siro
+        self.breaks = template.breaks
+        camera = BeltCamera(scenario, channels)
+        self.shape = camera.shape
+        self.spans = np.array(camera.spans, dtype=np.int64).reshape(r, 2)
+        b = scenario.belt
+        self.ef = np.zeros(V.N_EF)
+        for col, value in params.items():
+            self.ef[col] = value
+        self.ef[V.BELT_LAG] = b.length / b.speed  # as Belt.on_belt
+        self.ef[V.END_LAG] = template.last_end / b.speed  # as Belt.passed
+        self.ef[V.COL_SCALE] = camera.nx / camera.length
+        self.ef[V.ROW_SCALE] = camera.ny / camera.width
+        self.ef[V.SPEED] = b.speed
+        self.ef[V.WARMUP] = scenario.warmup
+        self.ei = np.zeros(V.N_EI, dtype=np.int64)
+        self.ei[V.MAX_STEPS] = max_steps
+        self.ei[V.SKIP_NOOPS] = int(skip_noops)
+        top = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+        if threads is None:
+            threads = DEFAULT_THREADS
+        if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= top:
+            raise ValueError(f"threads: {threads!r} is not allowed; give 1 to {top}")
+        self.threads = threads
+        self.n_chunks = min(n, 4 * threads) if threads > 1 else 1
+        self._alloc(int(len(template.fed) * PARTS_SLACK) + PARTS_PAD)
+        self._policy_rngs: list[np.random.Generator | None] = [None] * n
+        self._failure_rngs: list[list[np.random.Generator]] = [[] for _ in range(n)]
+
+    def _alloc(self, parts: int) -> None:
+        n, r = self.n, self.n_robots
+        self.parts = parts
+        self.ip = np.repeat(self.ip0[None], n, axis=0)
+        self.fs = np.zeros((n, r, L.N_FS))
+        self.ist = np.zeros((n, r, L.N_IS), dtype=np.int64)
+        self.gs = np.zeros((n, L.N_GS), dtype=np.int64)
+        self.gf = np.zeros((n, 1))
+        self.fed = np.full((n, parts), math.inf)
+        self.ys = np.zeros((n, parts))
+        self.holder = np.full((n, parts), -1, dtype=np.int64)
+        self.left_at = np.full((n, parts), math.inf)
+        self.counts = np.zeros((n, r, len(L.RULE_NAMES)), dtype=np.int64)
+        self.siro_draws = np.zeros((n, SIRO_ROOM if self.siro else 0), dtype=np.int64)
+        self.exps = np.zeros((n, r, EXP_ROOM if self.breaks else 0))
+        self.started = np.full((n, r), math.nan)
+        self.noops0 = np.zeros((n, r), dtype=np.int64)
+        self.epi = np.zeros((n, V.N_EPI), dtype=np.int64)
+        self._scratch(parts)
+        self.obs = np.zeros((n, *self.shape), dtype=np.uint8)
+        self.reward = np.zeros(n)
+        self.term = np.zeros(n, dtype=np.bool_)
+        self.trunc = np.zeros(n, dtype=np.bool_)
+        self.tau = np.zeros(n)
+        self.grip = np.zeros(n)
+        self.picks = np.zeros((n, r), dtype=np.int64)
+        self.noops = np.zeros((n, r), dtype=np.int64)
+        self.rewards = np.zeros((n, r))
+        self.options = np.zeros((n, r))
+        self.cand = np.zeros((n, r), dtype=np.int64)
+        self.skipped = np.zeros(n, dtype=np.int64)
+
+    def _scratch(self, parts: int) -> None:
+        """Per-chunk arrays the kernel writes and no environment reads (and no spans)."""
+        c = self.n_chunks
+        self.rec_i = np.full((c, parts, 2), -1, dtype=np.int64)
+        self.rec_f = np.zeros((c, parts, 4))
+        self.sp_i = np.zeros((c, 0, 2), dtype=np.int64)
+        self.sp_f = np.zeros((c, 0, 2))
+        self.c_i = np.zeros((c, parts + 1), dtype=np.int64)
+        self.c_f = np.zeros((c, parts + 1, 3))
+
+    def _grow(self, parts: int) -> None:
+        """Room for ``parts`` parts per line, the lines' parts kept."""
+        old = self.parts
+        for name, fill in (("fed", math.inf), ("ys", 0.0), ("holder", -1), ("left_at", math.inf)):
+            a = getattr(self, name)
+            b = np.full((self.n, parts), fill, dtype=a.dtype)
+            b[:, :old] = a
+            setattr(self, name, b)
+        self.parts = parts
+        self._scratch(parts)
+
+    # -- runs ------------------------------------------------------------------------------
+    def load(self, e: int, seed: int) -> None:
+        """Line e's next run is a fresh one of ``seed`` (it starts at the next step)."""
+        sc = self.scenario
+        seeds = replace(self.plan, seed=seed).seeds()  # the core's seed split
+        streams = [LinePlan.stream(seeds, k) for k in range(len(seeds))]
+        feeder = Feeder(
+            sc.feeder, sc.belt.width, streams[ARRIVALS], streams[LATERAL], sc.source_dir
+        )
+        fed, y, _ = feeder.stream(sc.duration)
+        m = len(fed)
+        if m > self.parts:
+            self._grow(max(m, int(m * PARTS_SLACK) + PARTS_PAD))
+        self.fed[e, :m] = fed
+        self.fed[e, m:] = math.inf
+        self.ys[e, :m] = y
+        self.gs[e, L.SIROIDX] = 0  # the new streams are unused: no top-up before the start
+        self.ist[e, :, L.EXPIDX] = 0
+        if self.siro:
+            policy = streams[POLICY]
+            self._policy_rngs[e] = policy
+            self.siro_draws[e] = policy.integers(0, 2**32, size=SIRO_ROOM, dtype=np.uint32)
+        if self.breaks:
+            self._failure_rngs[e] = streams[FIRST_ROBOT:]
+            for r, rng in enumerate(streams[FIRST_ROBOT:]):
+                if self.ip0[r, L.FAILMODE] == L.EXPONENTIAL:
+                    self.exps[e, r] = rng.standard_exponential(EXP_ROOM)
+
+    def top_up(self) -> None:
+        """Refill the pre-drawn streams of the lines with fewer than a margin left: the
+        kernel stops (ST_ROOM) before an event with less than its own margin left, and a
+        step draws at most one SIRO number per robot and two exponentials per robot."""
+        siro_margin = max(SIRO_MARGIN, L.SIRO_MARGIN + self.n_robots)
+        exp_margin = max(EXP_MARGIN, L.EXP_MARGIN + 2)
+        if self.siro:
+            for e in np.flatnonzero(self.gs[:, L.SIROIDX] > SIRO_ROOM - siro_margin).tolist():
+                k = int(self.gs[e, L.SIROIDX])
+                row = self.siro_draws[e]
+                row[: SIRO_ROOM - k] = row[k:]
+                rng = self._policy_rngs[e]
+                assert rng is not None
+                row[SIRO_ROOM - k :] = rng.integers(0, 2**32, size=k, dtype=np.uint32)
+                self.gs[e, L.SIROIDX] = 0
+        if self.breaks:
+            low = self.ist[:, :, L.EXPIDX] > EXP_ROOM - exp_margin
+            for e, r in zip(*np.nonzero(low), strict=True):
+                k = int(self.ist[e, r, L.EXPIDX])
+                row = self.exps[e, r]
+                row[: EXP_ROOM - k] = row[k:]
+                row[EXP_ROOM - k :] = self._failure_rngs[e][r].standard_exponential(k)
+                self.ist[e, r, L.EXPIDX] = 0
+
+    def step(self, codes: np.ndarray, mode: np.ndarray) -> None:
+        """Step each line as ``mode`` (int8, n) says (:data:`~pnp_twin.learning.vector.step.SKIP`,
+        ACT, RESET: start its loaded run); ACT answers its epoch with the rule codes
+        ``codes`` (n, robots). Each line stepped then runs to its next decision epoch."""
+        self.top_up()
+        numba.set_num_threads(self.threads)
+        V.step_lines(
+            self.fp, self.ip0, self.gp, self.gi, self.ef, self.ei, self.spans, self.ip,
+            self.fs, self.ist, self.gs, self.gf, self.fed, self.ys, self.holder, self.left_at,
+            self.counts, self.siro_draws, self.exps, self.rec_i, self.rec_f, self.sp_i,
+            self.sp_f, self.c_i, self.c_f, codes, mode, self.started, self.noops0, self.epi,
+            self.obs, self.reward, self.term, self.trunc, self.tau, self.grip, self.picks,
+            self.noops, self.rewards, self.options, self.cand, self.skipped,
+        )  # fmt: skip
+        if not V.statuses_ok(self.gs):
+            bad = int(np.flatnonzero(self.gs[:, L.STATUS] != L.ST_EPOCH)[0])
+            status = int(self.gs[bad, L.STATUS])
+            raise StreamsExhausted(
+                f"engine fast: line {bad} stopped with status {status} (a pre-drawn stream "
+                "ran out within one step); raise SIRO_ROOM/EXP_ROOM in "
+                "pnp_twin.learning.vector.batch"
+            )
+
+    @property
+    def now(self) -> np.ndarray:
+        """Each line's simulated time, s (a view)."""
+        return self.gf[:, L.NOW]
+
+    @property
+    def deciding(self) -> np.ndarray:
+        """(n, robots) bool: the robots of each line's pending epoch."""
+        return self.ist[:, :, L.PENDING] != 0
