@@ -17,6 +17,7 @@ Factory = Callable[[str], Policy]
 PREFIXED: dict[str, str] = {
     "hdqn": "pnp_twin.policies.hdqn.policy:from_spec",
     "sb3": "pnp_twin.policies.sb3_policy:from_spec",
+    "lookahead": "pnp_twin.policies.lookahead:from_spec",
 }
 
 
@@ -46,7 +47,7 @@ def make_policy(spec: str, n_robots: int | None = None) -> Policy:
     """A fresh policy for ``spec``: a rule name, a comma-separated mix, or ``prefix:arg``."""
     text = spec.strip()
     prefix, sep, arg = text.partition(":")
-    if sep:
+    if sep or prefix.lower() == "lookahead":  # ``lookahead`` alone: its defaults
         entry = PREFIXED.get(prefix.lower())
         if entry is None:
             raise PolicyError(f"policy: unknown kind '{prefix}'; allowed {allowed()}")

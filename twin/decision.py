@@ -71,8 +71,9 @@ class Decision:
 class Policy(Protocol):
     """Anything with ``reset`` and ``choose`` can drive the line (optionally ``last_rule``:
     the name of the rule behind the last choice; ``attach(belt)``, called once the
-    line's belt is loaded, for policies that look at the belt; and ``fixed_rules()``, see
-    :func:`fixed_rules`)."""
+    line's belt is loaded, for policies that look at the belt; ``bind_run(scenario, seed,
+    duration)``, called after ``reset``, for policies that simulate the run themselves (the
+    lookahead controller); and ``fixed_rules()``, see :func:`fixed_rules`)."""
 
     def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
         """Called once before a run with the robots and the run's policy stream."""

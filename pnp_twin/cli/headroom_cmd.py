@@ -1,0 +1,170 @@
+"""The ``headroom`` command of ``pnp-twin``: how much smarter coordination could gain.
+
+Runs :func:`pnp_twin.studies.headroom.run_headroom` (best rule, best static mix, the given
+policies, the lookahead controller and its clairvoyant bound, paired by seed) and writes
+``headroom.json``, ``runs.csv``, ``summary.csv`` and ``report.html`` into ``--out`` (under the
+folder's study lock, each file written atomically); prints the answer and a table, or the
+JSON with ``--json``.
+"""
+
+from __future__ import annotations
+
+import math
+import shlex
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich import box
+from rich.table import Table
+
+from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.cli.console import note, stdout_console
+from pnp_twin.cli.run_cmd import Engine
+from pnp_twin.studies.headroom import BOUND_NOTE, Headroom, HeadroomSettings, check_policies
+from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets, with_overrides
+from pnp_twin.twin.output import check_out_folder, dumps_json, removed_if_refused
+
+OURS = (".study.lock", ".study.lock.json", "headroom.json")
+"""Entries that make a folder a headroom study of ours (run again into it: rewritten)."""
+
+
+@app.command("headroom")
+def headroom(
+    scenario: ScenarioArg,
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out", metavar="DIR", help="The study folder (created).", show_default=False
+        ),
+    ],
+    seeds: Annotated[
+        int, typer.Option("--seeds", min=2, max=10_000, help="Held-out seeds FIRST..FIRST+N-1.")
+    ] = 20,
+    first_seed: Annotated[int, typer.Option("--first-seed", min=0, help="First seed.")] = 0,
+    policy: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--policy",
+            "-p",
+            metavar="P",
+            help="Another policy to place, e.g. hdqn:models/paper_baseline__async_rollout "
+            "(repeatable).",
+        ),
+    ] = None,
+    lookahead: Annotated[
+        str,
+        typer.Option(
+            "--lookahead",
+            metavar="SPEC",
+            help="The lookahead controller, e.g. lookahead:K=32,H=1.5,base=SD; the bound is "
+            "the same with oracle=1.",
+        ),
+    ] = "lookahead",
+    mix: Annotated[
+        str | None,
+        typer.Option("--mix", help="The best static mix (default: searched on tuning seeds)."),
+    ] = None,
+    duration: Annotated[
+        float | None,
+        typer.Option(
+            "--duration", min=1.0, help="Feeding time per run, s (default the scenario's)."
+        ),
+    ] = None,
+    sets: SetOpt = None,
+    workers: Annotated[
+        int, typer.Option("--workers", min=1, max=256, help="Worker processes.")
+    ] = 1,
+    engine: Annotated[
+        Engine, typer.Option("--engine", help="simpy, fast or auto (same results).")
+    ] = Engine.fast,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print the result as one JSON object.")
+    ] = False,
+) -> None:
+    """How much could smarter coordination gain? Best rule, best mix, given policies, the
+    lookahead controller and its clairvoyant bound, paired by seed."""
+    sc = load_scenario(scenario, parse_sets(sets or []))
+    if duration is not None:
+        sc = with_overrides(sc, {"duration": duration, "warmup": min(sc.warmup, duration / 5.0)})
+    settings = HeadroomSettings(
+        seeds=seeds,
+        first_seed=first_seed,
+        policies=tuple(policy or ()),
+        lookahead=lookahead,
+        mix=mix,
+        engine=engine.value,
+        workers=workers,
+    )
+    check_policies(sc, settings)  # a bad name fails before the folder is made
+    check_out_folder(out, {"scenario file": find_scenario(scenario)}, OURS)
+    from pnp_twin.studies.headroom import run_headroom
+    from pnp_twin.studies.lock import StudyLock
+
+    with removed_if_refused(out):
+        lock = StudyLock(out)
+        lock.acquire(shlex.join(["pnp-twin", *sys.argv[1:]]))
+        try:
+            result = run_headroom(sc, settings, _progress)
+            write_headroom(result, out)
+        finally:
+            lock.release()
+    if as_json:
+        typer.echo(dumps_json(result.to_json(), indent=2))
+        return
+    stdout_console().print(_table(result))
+    typer.echo(result.to_json()["answer"])
+    note(f"note: {BOUND_NOTE}")
+    note(f"wrote {out}/headroom.json, runs.csv, summary.csv, report.html")
+
+
+def write_headroom(result: Headroom, out: Path) -> None:
+    """The study's files, each written atomically."""
+    import pandas as pd
+
+    from pnp_twin.reports.headroom_report import headroom_html
+    from pnp_twin.twin.output import write_json, write_table, write_text
+
+    data = result.to_json()
+    write_table(pd.DataFrame(result.runs()), out / "runs.csv")
+    summary = [{"role": e.role, **e.row()} for e in result.entries]
+    write_table(pd.DataFrame(summary), out / "summary.csv")
+    write_text(headroom_html(data), out / "report.html")
+    write_json(data, out / "headroom.json")  # last: a folder with it holds a finished study
+
+
+def _progress(spec: str, done: int, total: int) -> None:
+    if total and done == total:
+        note(f"{spec}: {done} runs")
+
+
+def _fmt(x: float, sign: bool = False) -> str:
+    if x is None or not math.isfinite(x):
+        return "n/a"
+    return f"{x:+.2f}" if sign else f"{x:.2f}"
+
+
+def _table(result: Headroom) -> Table:
+    s = result.settings
+    t = Table(
+        title=f"{result.scenario.name}: headroom over the best rule, seeds "
+        f"{s.seed_list[0]}..{s.seed_list[-1]} (paired 95 % CI)",
+        box=box.SIMPLE,
+    )
+    for col in ("role", "policy", "G %", "95 % CI", "gain", "paired 95 % CI", "ms/decision"):
+        t.add_column(col, justify="left" if col in ("role", "policy") else "right")
+    shown = [result.best_rule, result.best_mix, *result.policies, result.lookahead, result.bound]
+    for e in shown:
+        role = "best rule" if e is result.best_rule else e.role.replace("_", " ")
+        cpu = e.cpu_ms_per_decision
+        t.add_row(
+            role,
+            e.policy,
+            _fmt(e.gripping_rate),
+            f"[{_fmt(e.ci_low)}, {_fmt(e.ci_high)}]",
+            _fmt(e.gain, True),
+            f"[{_fmt(e.gain_ci_low, True)}, {_fmt(e.gain_ci_high, True)}]",
+            "" if cpu is None else f"{cpu:.2f}",
+        )
+    return t

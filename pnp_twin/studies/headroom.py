@@ -1,0 +1,312 @@
+"""How much could smarter coordination gain on one line? The ``headroom`` study.
+
+On one scenario and ``seeds`` held-out seeds (0..N-1, common random numbers: every policy
+sees the same part stream), it measures
+
+- every rule, and the **best rule** (the reference: the best mean gripping rate on these
+  seeds, so the gains below are not flattered by a weak reference);
+- the **best static mix** (a rule per robot, found by coordinate ascent from the best
+  uniform rule on separate tuning seeds, 600,000 + i, as ``evaluate`` finds it), or a given
+  one;
+- any given policies (a trained HDQN: ``hdqn:DIR``);
+- the **lookahead** controller (:mod:`policies.lookahead`: one-step rollout over sampled
+  futures with rule continuations);
+- the clairvoyant **bound**: the same planner told the true future (``oracle=1``). It bounds
+  what one-step lookahead with rule continuations can gain, not what every possible
+  controller can.
+
+Each with its gripping rate and 95 % t-interval, and the paired difference to the best
+rule with its 95 % t-interval (the per-seed differences under common random numbers).
+:func:`answer` says it in one sentence, in points and in parts per hour.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pnp_twin.policies.registry import make_policy
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.run import simulate
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.stats import t_interval
+
+log = logging.getLogger(__name__)
+
+TUNING_SEED_BASE = 600_000
+BOUND_NOTE = (
+    "the bound is the lookahead planner told the true future arrivals (and failure times): "
+    "it bounds one-step lookahead with rule continuations, not every possible controller"
+)
+ROLES = ("rule", "best_mix", "policy", "lookahead", "bound")
+
+
+@dataclass(frozen=True)
+class HeadroomSettings:
+    """What one headroom study runs."""
+
+    seeds: int = 20
+    """Evaluation seeds first_seed..first_seed+seeds-1."""
+    first_seed: int = 0
+    policies: tuple[str, ...] = ()
+    """Other policies to place (e.g. ``hdqn:models/paper_baseline__async_rollout``)."""
+    lookahead: str = "lookahead"
+    """The lookahead controller's name (its settings: ``lookahead:K=32,H=1.5,base=SD``)."""
+    mix: str | None = None
+    """The best static mix; None: searched on tuning seeds."""
+    tuning_seeds: int = 3
+    engine: str = "fast"
+    workers: int = 1
+    confidence: float = 0.95
+
+    @property
+    def seed_list(self) -> list[int]:
+        return list(range(self.first_seed, self.first_seed + self.seeds))
+
+    @property
+    def bound(self) -> str:
+        """The clairvoyant variant of :attr:`lookahead` (same horizon and base rule)."""
+        from pnp_twin.policies.lookahead import LookaheadSettings, parse
+
+        _, _, arg = self.lookahead.partition(":")
+        s = parse(arg)
+        return LookaheadSettings(s.futures, s.horizon, s.base, oracle=True).name
+
+
+@dataclass
+class Entry:
+    """One policy's results: per-seed gripping rates, its interval, its paired gain."""
+
+    role: str
+    policy: str
+    values: list[float]
+    gripping_rate: float = math.nan
+    ci_low: float = math.nan
+    ci_high: float = math.nan
+    gain: float = math.nan
+    gain_ci_low: float = math.nan
+    gain_ci_high: float = math.nan
+    cpu_ms_per_decision: float | None = None
+
+    def row(self) -> dict[str, Any]:
+        out = {k: getattr(self, k) for k in ("policy", "gripping_rate", "ci_low", "ci_high")}
+        out |= {k: getattr(self, k) for k in ("gain", "gain_ci_low", "gain_ci_high")}
+        if self.cpu_ms_per_decision is not None:
+            out["cpu_ms_per_decision"] = self.cpu_ms_per_decision
+        return out
+
+
+@dataclass
+class Headroom:
+    """The study's result (:func:`run_headroom`)."""
+
+    scenario: Scenario
+    settings: HeadroomSettings
+    rules: list[Entry]
+    best_rule: Entry
+    best_mix: Entry
+    policies: list[Entry]
+    lookahead: Entry
+    bound: Entry
+    tuning_seeds: list[int] = field(default_factory=list)
+
+    @property
+    def entries(self) -> list[Entry]:
+        return [*self.rules, self.best_mix, *self.policies, self.lookahead, self.bound]
+
+    def to_json(self) -> dict[str, Any]:
+        """``best_rule``, ``best_mix``, ``policies``, ``lookahead``, ``bound`` (each with
+        policy, gripping_rate, ci_low, ci_high and the paired gain over the best rule with
+        its interval), every rule, the settings and the answer in one sentence."""
+        s, sc = self.settings, self.scenario
+        return {
+            "scenario": sc.name,
+            "seeds": s.seed_list,
+            "duration": sc.duration,
+            "warmup": sc.warmup,
+            "termination": sc.termination,
+            "engine": s.engine,
+            "confidence": s.confidence,
+            "answer": answer(self),
+            "note": BOUND_NOTE,
+            "best_rule": self.best_rule.row(),
+            "best_mix": {**self.best_mix.row(), "tuning_seeds": self.tuning_seeds},
+            "policies": [e.row() for e in self.policies],
+            "lookahead": self.lookahead.row(),
+            "bound": self.bound.row(),
+            "rules": [e.row() for e in self.rules],
+        }
+
+    def runs(self) -> list[dict[str, Any]]:
+        """One row per policy and seed: role, policy, seed, gripping_rate."""
+        return [
+            {"role": e.role, "policy": e.policy, "seed": seed, "gripping_rate": g}
+            for e in self.entries
+            for seed, g in zip(self.settings.seed_list, e.values, strict=True)
+        ]
+
+
+def check_policies(scenario: Scenario, settings: HeadroomSettings) -> None:
+    """Every policy name is one the registry makes (a bad one: one-line PolicyError)."""
+    n = scenario.robots.count
+    for spec in (*settings.policies, settings.lookahead, *([settings.mix] if settings.mix else [])):
+        make_policy(spec, n)
+    if not settings.lookahead.strip().lower().startswith("lookahead"):
+        from pnp_twin.policies.registry import PolicyError
+
+        raise PolicyError(
+            f"--lookahead: '{settings.lookahead[:60]}' is not a lookahead controller; give "
+            "lookahead or lookahead:K=32,H=1.5,base=SD"
+        )
+
+
+def _one(job: tuple[Scenario, str, int, str]) -> tuple[float, float | None]:
+    """Gripping rate of one run (and the policy's CPU ms per decision when it reports it)."""
+    scenario, spec, seed, engine = job
+    policy = make_policy(spec, scenario.robots.count)
+    result = simulate(scenario, policy, seed=seed, engine=engine)
+    stats = getattr(policy, "stats", None)
+    cpu = float(stats()["cpu_ms_per_decision"]) if callable(stats) else None
+    return float(result.kpis["gripping_rate"]), cpu
+
+
+Progress = Callable[[str, int, int], None]
+
+
+def _rates(
+    scenario: Scenario,
+    spec: str,
+    seeds: Sequence[int],
+    settings: HeadroomSettings,
+    progress: Progress | None = None,
+) -> tuple[list[float], float | None]:
+    """Gripping rate per seed (in ``settings.workers`` processes) and mean CPU per decision."""
+    from pnp_twin.parallel import pool_map_ordered
+
+    jobs = [(scenario, spec, s, settings.engine) for s in seeds]
+    done = [0]
+
+    def tick(_: Any) -> None:
+        done[0] += 1
+        if progress is not None:
+            progress(spec, done[0], len(jobs))
+
+    costly = ":" in spec or spec.strip().lower() == "lookahead"  # rules take milliseconds
+    if costly and settings.workers > 1 and len(jobs) > 1:
+        out = pool_map_ordered(_one, jobs, settings.workers, on_result=tick)
+    else:
+        out = []
+        for job in jobs:
+            out.append(_one(job))
+            tick(None)
+    cpus = [c for _, c in out if c is not None]
+    return [g for g, _ in out], (float(np.mean(cpus)) if cpus else None)
+
+
+def search_mix(
+    scenario: Scenario, settings: HeadroomSettings, progress: Progress | None = None
+) -> str:
+    """The best per-robot mix by coordinate ascent from the best uniform rule, on the
+    tuning seeds (the evaluation seeds are not used to choose it)."""
+    n = scenario.robots.count
+    seeds = [TUNING_SEED_BASE + i for i in range(settings.tuning_seeds)]
+    cache: dict[tuple[str, ...], float] = {}
+
+    def score(mix: tuple[str, ...]) -> float:
+        if mix not in cache:
+            spec = mix[0] if len(set(mix)) == 1 else ",".join(mix)
+            cache[mix] = float(np.mean(_rates(scenario, spec, seeds, settings)[0]))
+            if progress is not None:
+                progress("mix search", len(cache), 0)
+        return cache[mix]
+
+    best = max(((r,) * n for r in RULES), key=score)
+    for _ in range(2):
+        improved = False
+        for i in range(n):
+            for r in RULES:
+                mix = best[:i] + (r,) + best[i + 1 :]
+                if score(mix) > score(best):
+                    best, improved = mix, True
+        if not improved:
+            break
+    return best[0] if len(set(best)) == 1 else ",".join(best)
+
+
+def _entry(role: str, spec: str, values: list[float], ref: list[float], confidence: float) -> Entry:
+    e = Entry(role, spec, values)
+    e.gripping_rate, e.ci_low, e.ci_high = t_interval(values, confidence)
+    diff = list(np.asarray(values) - np.asarray(ref))
+    e.gain, e.gain_ci_low, e.gain_ci_high = t_interval(diff, confidence)
+    if all(d == 0.0 for d in diff):  # the reference itself: no spread, no interval
+        e.gain_ci_low = e.gain_ci_high = 0.0
+    return e
+
+
+def run_headroom(
+    scenario: Scenario, settings: HeadroomSettings, progress: Progress | None = None
+) -> Headroom:
+    """Run the study (see the module docstring)."""
+    check_policies(scenario, settings)
+    seeds = settings.seed_list
+    c = settings.confidence
+    raw: dict[str, list[float]] = {}
+    for rule in RULES:
+        raw[rule] = _rates(scenario, rule, seeds, settings, progress)[0]
+    best = max(RULES, key=lambda r: (float(np.mean(raw[r])), -list(RULES).index(r)))
+    ref = raw[best]
+    rules = [_entry("rule", r, raw[r], ref, c) for r in RULES]
+    best_rule = next(e for e in rules if e.policy == best)
+    mix = settings.mix or search_mix(scenario, settings, progress)
+    mix_values = raw.get(mix) or _rates(scenario, mix, seeds, settings, progress)[0]
+    best_mix = _entry("best_mix", mix, mix_values, ref, c)
+    policies = []
+    for spec in settings.policies:
+        values, cpu = _rates(scenario, spec, seeds, settings, progress)
+        policies.append(_entry("policy", spec, values, ref, c))
+        policies[-1].cpu_ms_per_decision = cpu
+    found = {}
+    for role, spec in (("lookahead", settings.lookahead), ("bound", settings.bound)):
+        values, cpu = _rates(scenario, spec, seeds, settings, progress)
+        name = str(getattr(make_policy(spec), "name", spec))  # lookahead: K=16,H=1,base=auto
+        found[role] = _entry(role, name, values, ref, c)
+        found[role].cpu_ms_per_decision = cpu
+    tuning = [] if settings.mix else [TUNING_SEED_BASE + i for i in range(settings.tuning_seeds)]
+    return Headroom(
+        scenario, settings, rules, best_rule, best_mix, policies, found["lookahead"],
+        found["bound"], tuning,
+    )  # fmt: skip
+
+
+def _points(e: Entry) -> str:
+    return f"{e.gain:+.2f} points [{e.gain_ci_low:+.2f}, {e.gain_ci_high:+.2f}]"
+
+
+def answer(h: Headroom) -> str:
+    """The study's answer in one sentence (points over the best rule, with the paired 95 %
+    intervals, and what the lookahead's gain is worth in parts per hour)."""
+    sc, b, la, bound = h.scenario, h.best_rule, h.lookahead, h.bound
+    flow = _part_flow(sc)
+    worth = ""
+    if flow is not None and math.isfinite(la.gain):
+        worth = f", worth {la.gain / 100.0 * flow * 3600.0:+,.0f} parts an hour gripped"
+    sure = "above zero" if la.gain_ci_low > 0 else "not surely above zero"
+    extra = "".join(f"; {e.policy} gets {_points(e)}" for e in h.policies)
+    return (
+        f"On {sc.name} the best rule, {b.policy}, grips {b.gripping_rate:.2f} %; a smarter "
+        f"controller could gain up to {_points(bound)} here (the clairvoyant one-step bound); "
+        f"the lookahead controller gets {_points(la)} ({sure}){worth}; the best static mix "
+        f"{h.best_mix.policy} gets {_points(h.best_mix)}{extra}."
+    )
+
+
+def _part_flow(sc: Scenario) -> float | None:
+    """Parts per second fed (None for a trace, whose flow the run measures)."""
+    if sc.feeder.arrival == "trace":
+        return None
+    return float(sc.feeder.rate)
