@@ -173,6 +173,8 @@ def ray_map(
     ray = import_ray()
     address = address or os.environ.get("RAY_ADDRESS") or None
     started_here = not ray.is_initialized()
+    # ray.init installs its own SIGTERM handler in the caller; put the caller's back at the end
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     if started_here:
         kwargs: dict[str, Any] = {
             "include_dashboard": False,
@@ -185,7 +187,10 @@ def ray_map(
             check_reachable(address)
         try:
             ray.init(address=address, **kwargs)
-        except (ConnectionError, RuntimeError, ValueError) as e:
+        except BaseException as e:
+            _restore_handlers(handlers)
+            if not isinstance(e, ConnectionError | RuntimeError | ValueError):
+                raise
             first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
             raise ParallelError(f"--address {address}: cannot connect to Ray: {first}") from None
     log.info("ray: %s", ray.cluster_resources())
@@ -203,3 +208,13 @@ def ray_map(
     finally:
         if started_here:
             ray.shutdown()
+            _restore_handlers(handlers)
+
+
+def _restore_handlers(handlers: dict[signal.Signals, Any]) -> None:
+    """Put back signal handlers saved with ``signal.getsignal`` (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for s, handler in handlers.items():
+        if handler is not None and signal.getsignal(s) is not handler:
+            signal.signal(s, handler)

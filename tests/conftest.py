@@ -10,16 +10,30 @@ Helpers are handed out as session-scoped fixtures (so hypothesis tests may use t
 - ``write_trace(path, rows)`` writes a feeder trace CSV of (time, y) rows.
 - ``check_invariants(result, choices=None)`` asserts the invariants every run must keep
   (conservation of parts, workspaces, timing order, no overlapping robot states).
+- ``foreign_signal_handlers``: SIGINT and SIGTERM handled by the test's own handler, to
+  check that an in-process command gives them back.
 - ``run_guarded(scenario, policy, seed=None)`` is :func:`twin.simulate` with a livelock
   guard: a run that keeps stepping at one simulated instant raises :class:`Livelock` (a
   TimeoutError) instead of hanging the test-suite.
+
+Strict mode (``--strict-deps``, or the environment variable ``CI`` or ``PNP_TWIN_STRICT`` set
+to anything but ``0``/``false``; ``.ci/run`` sets ``CI=1``): every skip is a failure. The
+suite skips a test only when something it needs is missing (torch, safetensors, Ray, RLlib,
+Stable-Baselines3, PettingZoo, playwright, Chromium, pdftotext, a shipped model), and the
+``test`` extra and ``.ci/run`` install all of them, so in CI a skip means a broken install.
+
+Every test must leave the SIGINT and SIGTERM handlers as it found them (a handler left
+behind by an in-process command would swallow the signals meant for pytest): a test that
+changes one fails, and the handler is put back.
 """
 
 from __future__ import annotations
 
 import csv
+import os
+import signal
 from collections import Counter
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -350,3 +364,93 @@ def logging_policy() -> Callable[[Policy], LoggingPolicy]:
 def write_trace() -> Callable[[Path, Sequence[tuple[float, float]]], Path]:
     """``write_trace(path, rows)``: write a trace CSV of (time, y) rows."""
     return write_trace_file
+
+
+STRICT_ENV = ("CI", "PNP_TWIN_STRICT")
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--strict-deps",
+        action="store_true",
+        default=False,
+        help="fail every test that would be skipped (a missing dependency); implied by CI=1 "
+        "or PNP_TWIN_STRICT=1",
+    )
+
+
+def strict_deps(config: pytest.Config) -> bool:
+    """Whether skips are failures: ``--strict-deps``, or CI / PNP_TWIN_STRICT set and true."""
+    if config.getoption("--strict-deps", default=False):
+        return True
+    for var in STRICT_ENV:
+        value = os.environ.get(var, "").strip().lower()
+        if value and value not in ("0", "false", "no", "off"):
+            return True
+    return False
+
+
+def _skip_reason(report: pytest.CollectReport | pytest.TestReport) -> str:
+    longrepr = report.longrepr
+    if isinstance(longrepr, tuple) and len(longrepr) == 3:
+        return str(longrepr[2])
+    return str(longrepr)
+
+
+def _fail_skip(config: pytest.Config, report: pytest.CollectReport | pytest.TestReport) -> None:
+    if report.skipped and not hasattr(report, "wasxfail") and strict_deps(config):
+        report.outcome = "failed"
+        report.longrepr = (
+            f"strict mode (--strict-deps, CI or PNP_TWIN_STRICT): a skip is a failure, "
+            f"something the tests need is missing: {_skip_reason(report)}"
+        )
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_make_collect_report(
+    collector: pytest.Collector,
+) -> Generator[None, pytest.CollectReport, pytest.CollectReport]:
+    report = yield
+    _fail_skip(collector.config, report)
+    return report
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(
+    item: pytest.Item, call: pytest.CallInfo[None]
+) -> Generator[None, pytest.TestReport, pytest.TestReport]:
+    report = yield
+    _fail_skip(item.config, report)
+    return report
+
+
+def _foreign_handler(signum: int, frame: Any) -> None:
+    raise AssertionError(f"signal {signum} reached the test's own handler")
+
+
+@pytest.fixture
+def foreign_signal_handlers() -> Iterator[dict[int, Any]]:
+    """SIGINT and SIGTERM handled by a handler of the test's own (neither the default nor
+    Python's), as a program embedding ours would; the test checks they are still there after
+    an in-process command. Put back afterwards."""
+    handlers = {s: _foreign_handler for s in (signal.SIGINT, signal.SIGTERM)}
+    before = {s: signal.signal(s, h) for s, h in handlers.items()}
+    try:
+        yield dict(handlers)
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
+
+
+@pytest.fixture(autouse=True)
+def _signal_handlers_restored() -> Iterator[None]:
+    """Fail a test that leaves SIGINT or SIGTERM handled differently (and restore it)."""
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    changed = []
+    for s, handler in before.items():
+        now = signal.getsignal(s)
+        if now is not handler:
+            changed.append(f"{signal.Signals(s).name}: {handler!r} -> {now!r}")
+            signal.signal(s, handler)
+    assert not changed, f"the test left signal handlers changed: {'; '.join(changed)}"

@@ -13,9 +13,11 @@ from __future__ import annotations
 import copy
 import functools
 import logging
+import re
 import tomllib
 import typing
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -23,9 +25,9 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
-from pnp_twin.twin.errors import ScenarioError, clip, excerpt, read_user_text
+from pnp_twin.twin.errors import ScenarioError, check_regular, clip, excerpt, read_user_text
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.trace import check_replay
+from pnp_twin.twin.trace import arrival_from_trace, check_replay
 
 __all__ = [
     "ScenarioError",
@@ -68,6 +70,132 @@ def safe_no_alias_loader() -> type:
     return SafeNoAliasLoader
 
 
+YAML11_BOOL = re.compile(r"^(?:yes|Yes|YES|no|No|NO|on|On|ON|off|Off|OFF)$")
+YAML12_NUMBER = re.compile(
+    r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?|0o[0-7]+|0x[0-9a-fA-F]+"
+    r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"
+)
+
+
+@dataclass(frozen=True)
+class Ambiguous:
+    """A plain YAML scalar that YAML 1.1 (PyYAML) and YAML 1.2 read differently (``yes``,
+    ``NO``, ``1e3``, ``010``, ``1_000``, ``1:30``): kept aside, then refused with a hint."""
+
+    text: str
+    line: int
+    yaml11: Any  # what PyYAML (YAML 1.1) reads
+    yaml12: Any  # what a YAML 1.2 reader reads
+
+    def hint(self) -> str:
+        if isinstance(self.yaml11, bool):
+            return (
+                f"YAML 1.1 reads it as {self.yaml11}, YAML 1.2 as the text '{self.text}'; write "
+                f"{str(self.yaml11).lower()} for a yes/no value, or quote it ('{self.text}') "
+                "for text"
+            )
+        if isinstance(self.yaml11, str):
+            return (
+                f"YAML 1.1 reads it as text, YAML 1.2 as the number {self.yaml12!r}; write "
+                f"{_yaml11_number(self.yaml12)} for a number, or quote it ('{self.text}') for "
+                "text"
+            )
+        return (
+            f"YAML 1.1 reads it as {self.yaml11!r}, YAML 1.2 as {self.yaml12!r}; write "
+            f"{_yaml11_number(self.yaml11)} for the number, or quote it ('{self.text}') for text"
+        )
+
+
+def _yaml11_number(value: Any) -> str:
+    """``value`` written so that YAML 1.1 and 1.2 read the same number (``1.0e+300``)."""
+    if isinstance(value, int) or not isinstance(value, float):
+        return str(value)
+    text = repr(value)
+    if "e" in text:
+        mantissa, exponent = text.split("e")
+        mantissa = mantissa if "." in mantissa else f"{mantissa}.0"
+        sign = "" if exponent[0] in "+-" else "+"
+        return f"{mantissa}e{sign}{exponent}"
+    return text
+
+
+def _yaml12_value(text: str) -> Any:
+    """What a YAML 1.2 (core schema) reader makes of a plain scalar that looks numeric."""
+    t = text.replace("_", "")
+    for base, prefix in ((8, "0o"), (16, "0x")):
+        if t.lower().startswith(prefix):
+            try:
+                return int(t[2:], base)
+            except ValueError:
+                return text
+    try:
+        return int(t) if re.fullmatch(r"[-+]?[0-9]+", t) else float(t)
+    except ValueError:
+        return text
+
+
+@functools.cache
+def strict_yaml_loader() -> type:
+    """The loader of scenario files: :func:`safe_no_alias_loader` that also refuses a key
+    given twice in a mapping, and keeps aside (as :class:`Ambiguous`) every plain scalar that
+    YAML 1.1 and 1.2 read differently, so that it can be refused with its field's name."""
+    import yaml
+
+    class StrictLoader(safe_no_alias_loader()):  # type: ignore[misc]
+        def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+            seen: dict[Any, int] = {}
+            for key_node, _ in node.value:
+                if isinstance(key_node, yaml.ScalarNode):
+                    key = key_node.value
+                    if key in seen:
+                        raise yaml.constructor.ConstructorError(
+                            None,
+                            None,
+                            f"key '{clip(key, 40)}' is given twice (first on line {seen[key]}); "
+                            "give each key once",
+                            key_node.start_mark,
+                        )
+                    seen[key] = key_node.start_mark.line + 1
+            return super().construct_mapping(node, deep=deep)
+
+        def construct_object(self, node: Any, deep: bool = False) -> Any:
+            value = super().construct_object(node, deep=deep)
+            if isinstance(node, yaml.ScalarNode) and node.style is None:
+                text = node.value
+                line = node.start_mark.line + 1
+                if isinstance(value, bool) and YAML11_BOOL.match(text):
+                    return Ambiguous(text, line, value, text)
+                if isinstance(value, int | float) and not isinstance(value, bool):
+                    t = text.lstrip("+-")
+                    octal = len(t) > 1 and t[0] == "0" and t[1:2].isdigit()
+                    if "_" in t or ":" in t or t[:2].lower() == "0b" or octal:
+                        return Ambiguous(text, line, value, _yaml12_value(text))
+                if isinstance(value, str) and YAML12_NUMBER.match(text):
+                    return Ambiguous(text, line, value, _yaml12_value(text))
+            return value
+
+    return StrictLoader
+
+
+def _first_ambiguous(data: Any, path: str = "") -> tuple[str, Ambiguous] | None:
+    """The first :class:`Ambiguous` scalar in ``data``, with its dotted path."""
+    if isinstance(data, Ambiguous):
+        return path, data
+    if isinstance(data, dict):
+        for key, value in data.items():
+            if isinstance(key, Ambiguous):
+                return (f"{path}." if path else "") + "(a key)", key
+            found = _first_ambiguous(value, f"{path}.{key}" if path else str(key))
+            if found:
+                return found
+    if isinstance(data, list):
+        for i, value in enumerate(data):
+            found = _first_ambiguous(value, f"{path}.{i}")
+            if found:
+                return found
+    return None
+
+
 def shipped_scenarios() -> list[str]:
     """Names of the scenarios shipped with the package (usable without a path)."""
     root = resources.files("pnp_twin.scenarios")
@@ -79,6 +207,7 @@ def find_scenario(name_or_path: str | Path) -> Path:
     path = Path(name_or_path)
     if path.is_file():
         return path
+    check_regular(path, "scenario", ScenarioError)  # a FIFO, a device, a folder: by its kind
     if path.suffix == "" and path.parent == Path("."):
         root = resources.files("pnp_twin.scenarios")
         for suffix in SUFFIXES:
@@ -107,7 +236,7 @@ def _parse(text: str, path: Path, suffix: str) -> Any:
     import yaml
 
     try:
-        return yaml.load(text, Loader=safe_no_alias_loader())  # noqa: S506 (a safe loader)
+        data = yaml.load(text, Loader=strict_yaml_loader())  # noqa: S506 (a safe loader)
     except yaml.YAMLError as e:
         first = getattr(e, "problem", None) or (str(e).splitlines() or ["parse error"])[0]
         mark = getattr(e, "problem_mark", None)
@@ -117,6 +246,14 @@ def _parse(text: str, path: Path, suffix: str) -> Any:
         ) from None
     except RecursionError:
         raise ScenarioError(f"scenario: '{path}' is nested too deeply to be a scenario") from None
+    found = _first_ambiguous(data)
+    if found:
+        where, scalar = found
+        raise ScenarioError(
+            f"{where}: {clip(scalar.text, 30)} on line {scalar.line} of '{path}' is ambiguous "
+            f"in YAML: {scalar.hint()}"
+        )
+    return data
 
 
 def read_mapping(path: Path) -> dict[str, Any]:
@@ -193,13 +330,55 @@ def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> di
         node: dict[str, Any] = out
         for depth, key in enumerate(keys[:-1]):
             child = node.get(key)
+            where = ".".join(keys[: depth + 1])
+            if keys[depth + 1].isdigit():  # one element of a list, e.g. robots.bin_offset.1
+                if child is None:
+                    child = _default(keys[: depth + 1])
+                if isinstance(child, list | tuple):
+                    if depth + 2 != len(keys):
+                        raise ScenarioError(
+                            f"--set {dotted}: only one element of a list field can be named, "
+                            f"by its index (e.g. robots.bin_offset.1)"
+                        )
+                    node[key] = _with_element(dotted, where, child, int(keys[-1]), value)
+                    break
+                if child is None:
+                    raise ScenarioError(
+                        f"--set {dotted}: '{where}' is not set, so it has no element "
+                        f"{keys[depth + 1]}; set the whole list (--set '{where}=[...]')"
+                    )
             if child is None:
                 child = node[key] = {}
             if not isinstance(child, dict):
-                where = ".".join(keys[: depth + 1])
                 raise ScenarioError(f"--set {dotted}: '{where}' is a value, not a section")
             node = child
-        node[keys[-1]] = value
+        else:
+            node[keys[-1]] = value
+    return out
+
+
+@functools.cache
+def _defaults() -> dict[str, Any]:
+    return Scenario().model_dump(mode="json")
+
+
+def _default(keys: Sequence[str]) -> Any:
+    """The default (``paper_baseline``'s) value at a path, None when there is none."""
+    node: Any = _defaults()
+    for key in keys:
+        node = node.get(key) if isinstance(node, dict) else None
+    return copy.deepcopy(node)
+
+
+def _with_element(dotted: str, where: str, items: Any, index: int, value: Any) -> list[Any]:
+    out = list(items)
+    if index >= len(out):
+        allowed = f"0..{len(out) - 1}" if out else "none (the list is empty)"
+        raise ScenarioError(
+            f"--set {dotted}: index {index} is out of range; {where} has {len(out)} "
+            f"elements, allowed {allowed}"
+        )
+    out[index] = value
     return out
 
 
@@ -246,14 +425,42 @@ def _format_error(e: ValidationError) -> str:
             return f"{loc}: not a scenario field; {INTERNAL[loc]}"
         return f"{loc}: unknown key; check the spelling (see `pnp-twin schema`)"
     bad = excerpt(err.get("input"))
+    shape = _shape(parts)
+    if shape and (
+        kind in ("too_long", "too_short", "tuple_type", "list_type")
+        or (kind == "missing" and parts and isinstance(parts[-1], int))
+    ):
+        if kind == "missing":  # pydantic points at the missing element; name the list
+            parts = parts[:-1]
+            loc = ".".join(str(p) for p in parts)
+        return f"{loc}: {bad} is not allowed; give {shape}"
     if kind in ("model_type", "model_attributes_type", "dict_type"):
         return f"{loc}: {bad} is not allowed; {loc} is a section of fields (see `pnp-twin schema`)"
     if kind == "string_pattern_mismatch":
         return f"{loc}: {bad} is not allowed; give one line of text (no control characters)"
-    if not loc or msg.split(":", 1)[0].count(".") >= 1:
+    if not loc or msg.split(":", 1)[0].count(".") >= 1 or "physical lower bound" in msg:
         return f"{loc + ': ' if loc and not msg.startswith(loc) else ''}{msg}"
     unit = _unit(parts) if msg[-1:].isdigit() else ""
     return f"{loc}: {bad} is not allowed; {msg.lower()}{unit}"
+
+
+SHAPES = {
+    "bin_offset": "two numbers [dx, dy] in m (along the belt from the workspace centre, "
+    "beyond the upper belt edge)",
+    "grid": "two whole numbers [cells along, cells across]",
+    "workspaces": "one [a, b] pair of numbers in m per robot, e.g. [[0.3, 0.5], [0.5, 0.7]]",
+}
+
+
+def _shape(parts: Sequence[Any]) -> str | None:
+    """What a list-shaped field needs, when the error is about that field's shape."""
+    names = [p for p in parts if not isinstance(p, int)]
+    if not names or names[-1] not in SHAPES:
+        return None
+    if names[-1] == "workspaces" and parts and isinstance(parts[-1], int):
+        if len(parts) >= 2 and isinstance(parts[-2], int):  # an element of one workspace
+            return "each workspace as two numbers [a, b] in m"
+    return SHAPES[names[-1]]
 
 
 def validate(data: Mapping[str, Any], source_dir: str | None = None) -> Scenario:
@@ -273,6 +480,9 @@ def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None 
     path = find_scenario(name_or_path)
     data = read_mapping(path)
     if overrides:
+        data, said = arrival_from_trace(data, overrides, path.parent.resolve())
+        if said:
+            log.warning("%s", said)  # one line on stderr: the trace is no longer replayed
         data = apply_overrides(data, overrides)
     scenario = validate(data, source_dir=str(path.parent.resolve()))
     check_replay(scenario)
@@ -281,6 +491,10 @@ def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None 
 
 
 def with_overrides(scenario: Scenario, overrides: Mapping[str, Any]) -> Scenario:
-    """A new scenario with dotted-path overrides applied and validated again."""
+    """A new scenario with dotted-path overrides applied and validated again (another
+    ``feeder.arrival`` on a trace scenario takes the trace's mean rate, as ``--set`` does)."""
     data = scenario.model_dump(mode="json", exclude_none=False)
+    data, said = arrival_from_trace(data, overrides, scenario.source_dir)
+    if said:
+        log.info("%s", said)
     return validate(apply_overrides(data, overrides), source_dir=scenario.source_dir)

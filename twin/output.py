@@ -14,8 +14,9 @@ import os
 import platform
 import re
 import secrets
+import shutil
 import sys
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
@@ -24,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import tomli_w
 
-from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.errors import UserError, clip, file_kind
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -37,20 +38,105 @@ class OutputError(UserError):
     """A result file that cannot be written where or how the user asked; one line."""
 
 
+def _existing_ancestor(p: Path) -> Path:
+    """The nearest folder above ``p`` (or ``p``'s parent) that exists."""
+    q = p.absolute().parent
+    while not q.exists() and q != q.parent:
+        q = q.parent
+    return q
+
+
 def check_writable(path: str | Path, option: str = "output") -> Path:
-    """``path`` as a Path once its folder exists (created if missing) and can be written.
+    """``path`` as a Path if it can be written: not a folder or another kind of non-regular
+    file, and its nearest existing folder writable. Nothing is created here (a missing parent
+    folder is made when the file is written), so a command refused later leaves no trace.
 
     Called before a long computation, so a bad output path fails at once, not at the end.
     """
     p = Path(path)
-    if p.is_dir():
+    kind = file_kind(p)
+    if kind == "a folder":
         raise OutputError(f"{option}: '{p}' is a folder; give a file name")
+    if kind is not None:
+        raise OutputError(f"{option}: '{p}' is {kind}; give a regular file name")
+    base = _existing_ancestor(p)
+    if not base.is_dir():
+        raise OutputError(f"{option}: cannot create folder '{p.parent}': '{base}' is a file")
+    if not os.access(base, os.W_OK):
+        raise OutputError(f"{option}: cannot write in folder '{base}': permission denied")
+    return p
+
+
+def same_path(a: str | Path, b: str | Path) -> bool:
+    """Whether two paths name one file: equal once links and ``..`` are resolved, or (both
+    existing) the same inode, so a hard link counts too."""
     try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise OutputError(f"{option}: cannot create folder '{p.parent}': {e.strerror}") from None
-    if not os.access(p.parent, os.W_OK):
-        raise OutputError(f"{option}: cannot write in folder '{p.parent}': permission denied")
+        if Path(a).resolve() == Path(b).resolve():
+            return True
+        return os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b)
+    except (OSError, ValueError):
+        return False
+
+
+def check_not_inputs(
+    output: str | Path, inputs: Mapping[str, str | Path | None], option: str
+) -> None:
+    """Refuse an output file that is one of the command's input files (``inputs``: what
+    each is -> its path), before anything is written: no output overwrites an input."""
+    for what, path in inputs.items():
+        if path is not None and same_path(output, path):
+            raise OutputError(
+                f"{option}: '{clip(str(output))}' is the {what} this command reads; writing "
+                "there would overwrite it; give another file"
+            )
+
+
+def check_out_folder(
+    out: str | Path,
+    inputs: Mapping[str, str | Path | None],
+    ours: Iterable[str],
+    option: str = "--out",
+) -> Path:
+    """Check an output folder before it is created: not a file, not a folder that holds
+    files and is not one of ours (one of ``ours`` names an entry in it: a study to resume),
+    not a folder holding one of the command's ``inputs`` (a study rewrites its folder)."""
+    p = Path(out)
+    kind = file_kind(p)
+    if kind is not None and kind != "a folder":
+        raise OutputError(f"{option} {clip(str(p))}: is {kind}; give a folder")
+    if p.exists() and not p.is_dir():
+        raise OutputError(f"{option} {clip(str(p))}: is a file; give a folder")
+    base = _existing_ancestor(p / "x")
+    if not base.is_dir():
+        raise OutputError(f"{option} {clip(str(p))}: cannot be created; '{base}' is a file")
+    if p.is_dir():
+        try:
+            entries = {e.name for e in os.scandir(p)}
+        except OSError as e:
+            raise OutputError(f"{option} {clip(str(p))}: cannot be read: {e.strerror}") from None
+        if entries and not entries & set(ours):
+            shown = ", ".join(sorted(entries)[:3]) + (", ..." if len(entries) > 3 else "")
+            raise OutputError(
+                f"{option} {clip(str(p))}: is a folder that holds other files ({clip(shown, 50)}) "
+                "and no study of ours; give an empty or new folder, or a study folder to resume"
+            )
+        if not os.access(p, os.W_OK):
+            raise OutputError(f"{option} {clip(str(p))}: cannot be written: permission denied")
+    elif not os.access(base, os.W_OK):
+        raise OutputError(
+            f"{option} {clip(str(p))}: cannot be created in '{base}': permission denied"
+        )
+    root = p.resolve()
+    for what, path in inputs.items():
+        if path is None:
+            continue
+        q = Path(path).resolve()
+        if q == root or root in q.parents:
+            raise OutputError(
+                f"{option} {clip(str(p))}: holds the {what} '{clip(str(path))}' this command "
+                "reads; the study writes into its folder, so keep inputs outside it or choose "
+                "another folder"
+            )
     return p
 
 
@@ -67,6 +153,25 @@ def check_table_path(path: str | Path, option: str = "output") -> Path:
 def same_file(a: str | Path, b: str | Path) -> bool:
     """Whether two output paths name one file (after resolving links and ``..``)."""
     return Path(a).resolve() == Path(b).resolve()
+
+
+LOCK_NAMES = frozenset({".study.lock", ".study.lock.json"})
+
+
+@contextmanager
+def removed_if_refused(out: str | Path, only: frozenset[str] = LOCK_NAMES) -> Iterator[None]:
+    """Remove the folder ``out`` again when the block created it and fails before writing
+    any file in it but those named in ``only`` (a study's lock): a refusal leaves nothing."""
+    folder = Path(out)
+    existed = folder.exists()
+    try:
+        yield
+    except BaseException:
+        if not existed and folder.is_dir():
+            names = {p.name for p in folder.rglob("*") if not p.is_dir()}
+            if names <= only:
+                shutil.rmtree(folder, ignore_errors=True)
+        raise
 
 
 @contextmanager

@@ -20,6 +20,7 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import (
+    AfterValidator,
     BaseModel,
     BeforeValidator,
     ConfigDict,
@@ -53,6 +54,27 @@ SEED_MAX = 2**63 - 1
 NO_CONTROL = r"^[^\x00-\x1f\x7f]*$"  # one-line text: no newlines or other control characters
 
 
+def least(minimum: float, unit: str, why: str, *, zero_is_off: bool = False) -> AfterValidator:
+    """A physical lower bound on a speed, rate, length or time, stated in the error: the
+    schema's ``> 0`` lets through ``1e-300``, which no line has and which would make a run
+    drain for ever. With ``zero_is_off``, 0 (the feature off) is allowed too."""
+
+    def check(value: Any) -> Any:
+        if isinstance(value, int | float) and value < minimum and not (zero_is_off and value == 0):
+            off = "0 (off) or " if zero_is_off else ""
+            raise ValueError(
+                f"{value:g} {unit} is below the physical lower bound; give {off}at least "
+                f"{minimum:g} {unit} ({why})"
+            )
+        return value
+
+    return AfterValidator(check)
+
+
+MIN_SPEED = least(0.01, "m/s", "1 cm/s; slower never drains the belt")
+MIN_LENGTH = least(0.001, "m", "1 mm")
+
+
 def num(
     default: Any,
     unit: str,
@@ -76,9 +98,13 @@ class Frozen(BaseModel):
 class BeltConfig(Frozen):
     """The conveyor: a part's position is x(t) = speed * (t - fed_at)."""
 
-    length: Real = num(2.4, "m", "Belt length L in m, from the feeder (x=0).", gt=0, le=1000)
-    width: Real = num(0.4, "m", "Belt width W in m (y from 0 to W).", gt=0, le=10)
-    speed: Real = num(0.8, "m/s", "Belt speed v_b in m/s.", gt=0, le=10)
+    length: Annotated[Real, MIN_LENGTH] = num(
+        2.4, "m", "Belt length L in m, from the feeder (x=0).", gt=0, le=1000
+    )
+    width: Annotated[Real, MIN_LENGTH] = num(
+        0.4, "m", "Belt width W in m (y from 0 to W).", gt=0, le=10
+    )
+    speed: Annotated[Real, MIN_SPEED] = num(0.8, "m/s", "Belt speed v_b in m/s.", gt=0, le=10)
     grid: tuple[
         Annotated[int, Strict(), Field(ge=1, le=4096), INTEGRAL],
         Annotated[int, Strict(), Field(ge=1, le=1024), INTEGRAL],
@@ -91,7 +117,7 @@ class FeederConfig(Frozen):
     arrival: Literal["poisson", "normal", "fixed", "trace"] = Field(
         "poisson", description="Arrival process: poisson, normal gaps, fixed spacing, or trace."
     )
-    rate: Real = num(
+    rate: Annotated[Real, least(0.001, "parts/s", "one part in 1000 s")] = num(
         10.0, "parts/s", "Part flow f_p in parts/s (not used by trace).", gt=0, le=1000
     )
     cv: Real = num(
@@ -134,10 +160,12 @@ class FeederConfig(Frozen):
 
 Position = Annotated[Real, Field(ge=0, le=1000)]
 PickTime = Annotated[Real, Field(ge=0, le=60)]
-ArmSpeed = Annotated[Real, Field(gt=0, le=100)]
+ArmSpeed = Annotated[Real, Field(gt=0, le=100), least(0.01, "m/s", "1 cm/s")]
 Acceleration = Annotated[Real, Field(ge=0, le=1000)]
 BinOffset = tuple[Annotated[Real, Field(ge=-10, le=10)], Annotated[Real, Field(ge=0, le=10)]]
-Mtbf = Annotated[Real, Field(ge=0, le=1e9)]
+Mtbf = Annotated[
+    Real, Field(ge=0, le=1e9), least(0.1, "s", "10 breakdowns per second", zero_is_off=True)
+]
 Mttr = Annotated[Real, Field(ge=0, le=1e7)]
 
 
@@ -169,7 +197,9 @@ class RobotsConfig(Frozen):
         "are laid out from first_workspace_start, workspace_length and workspace_gap.",
     )
     first_workspace_start: Real = num(0.3, "m", "a_1 in m.", ge=0, le=1000)
-    workspace_length: Real = num(0.2192, "m", "b_i - a_i in m.", gt=0, le=100)
+    workspace_length: Annotated[Real, MIN_LENGTH] = num(
+        0.2192, "m", "b_i - a_i in m.", gt=0, le=100
+    )
     workspace_gap: Real = num(0.0, "m", "Gap between workspaces in m.", ge=0, le=100)
     arm_speed: ArmSpeed = num(3.0, "m/s", "Tool speed v_r in m/s (straight moves).")
     pick_time: PickTime = num(0.003694, "s", "Grip time in s.")
@@ -257,6 +287,17 @@ def duplicate_policy(names: Any) -> str | None:
     return None
 
 
+def repeated_value(values: Any) -> Any | None:
+    """A value that ``values`` (a grid's list) holds twice (``4`` and ``4.0`` are one value),
+    or None: a repeated grid value would run the same point twice."""
+    seen: list[Any] = []
+    for v in values:
+        if any(v == w and isinstance(v, bool) == isinstance(w, bool) for w in seen):
+            return v
+        seen.append(v)
+    return None
+
+
 class SweepConfig(Frozen):
     """A study: a grid over scenario fields, policies to compare, replications."""
 
@@ -276,12 +317,8 @@ class SweepConfig(Frozen):
             "replications in rounds until every point's CI half-width of G is at most half_width.",
         )
     )
-    half_width: Real | None = num(
-        None,
-        "%",
-        "With replications = 'auto': the target CI half-width of G, in points.",
-        gt=0,
-        le=100,
+    half_width: Annotated[Real, Field(gt=0, le=100), least(0.01, "%", "points of G")] | None = num(
+        None, "%", "With replications = 'auto': the target CI half-width of G, in points."
     )
     max_replications: Annotated[int, Strict(), Field(ge=2, le=10_000), INTEGRAL] | None = Field(
         None, description="With replications = 'auto': the most replications (default 30)."
@@ -298,6 +335,12 @@ class SweepConfig(Frozen):
         for path, values in v.items():
             if len(values) == 0:
                 raise ValueError(f"sweep.grid.{path}: empty list; give at least one value")
+            twice = repeated_value(values)
+            if twice is not None:
+                raise ValueError(
+                    f"sweep.grid.{path}: {str(twice)[:40]} is given twice; give each value once "
+                    "(a repeated value runs the same point twice)"
+                )
         return v
 
     @field_validator("policies")

@@ -52,6 +52,10 @@ def report(
     """Build the self-contained HTML report of a study or training folder (opens offline)."""
     if out is not None and out.is_dir():
         raise UserError(f"--out {out}: is a folder; give a file name such as {out}/report.html")
+    if out is not None and out.suffix.lower() not in (".html", ".htm"):
+        raise UserError(
+            f"--out {out}: must end in .html (a report never replaces a table or a study file)"
+        )
     from pnp_twin.reports import Animation, build_report  # the front end imports reports
 
     path = build_report(study_dir, out, Animation(animate_from, animate_seconds))

@@ -23,9 +23,16 @@ from pnp_twin.cli.app import ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note, stderr_console, stdout_console
 from pnp_twin.policies import make_policy
 from pnp_twin.twin.budget import check_run
-from pnp_twin.twin.loader import ScenarioError, load_scenario, parse_sets, shipped_scenarios
+from pnp_twin.twin.loader import (
+    ScenarioError,
+    find_scenario,
+    load_scenario,
+    parse_sets,
+    shipped_scenarios,
+)
 from pnp_twin.twin.output import (
     OutputError,
+    check_not_inputs,
     check_table_path,
     check_writable,
     dumps_json,
@@ -128,7 +135,15 @@ def run(
         raise OutputError(
             f"--spans: '{spans}' is the file --events writes; give the two different files"
         )
+    if report is not None:
+        for option, other in (("--events", events), ("--spans", spans)):
+            if other is not None and same_file(report, other):
+                raise OutputError(f"--report: '{report}' is the file {option} writes")
     scn = _load(scenario, sets)
+    inputs = {"scenario file": find_scenario(scenario), "trace": trace_file(scn)}
+    for option, output in (("--events", events), ("--spans", spans), ("--report", report)):
+        if output is not None:
+            check_not_inputs(output, inputs, option)
     check_run(scn, force)
     spec = policy if policy is not None else scn.policy
     pol = make_policy(spec, scn.robots.count)
@@ -148,8 +163,12 @@ def run(
         scenario_dict = scn.model_dump(mode="json")
         build_run_report(result.kpis, result.parts, result.spans, scenario_dict, report)
         note(f"report: {report}")
+    stats = getattr(pol, "stats", None)  # a policy that reports its own cost (lookahead)
+    extra = {"policy_stats": stats()} if callable(stats) else {}
     if as_json:
-        typer.echo(dumps_json({**result.kpis, "engine": result.meta.get("engine", "simpy")}))
+        typer.echo(
+            dumps_json({**result.kpis, "engine": result.meta.get("engine", "simpy"), **extra})
+        )
         return
     out = stdout_console()
     out.print(kpi_table(result))
@@ -158,6 +177,13 @@ def run(
         f"fed {scn.duration:g} s, drained to t = {result.sim_time:,.0f} s, "
         f"in {result.wall_time:.2f} s wall time ({result.meta.get('engine', 'simpy')} engine)"
     )
+    if extra:
+        ps = extra["policy_stats"]
+        note(
+            f"{ps.get('policy', 'policy')}: {ps.get('decisions', 0)} decisions "
+            f"({ps.get('planned', 0)} planned), {ps.get('cpu_ms_per_decision', math.nan):.2f} ms "
+            "CPU per decision"
+        )
 
 
 def _pct(x: float) -> str:

@@ -17,6 +17,8 @@ much as a gripping rate one point off).
 
 from __future__ import annotations
 
+import csv
+import io
 import math
 import re
 from dataclasses import dataclass
@@ -28,6 +30,7 @@ import pandas as pd
 
 from pnp_twin.studies.calibrate_fields import FieldRef, resolve_path
 from pnp_twin.studies.plan import StudyError
+from pnp_twin.twin.errors import clip, read_user_text
 from pnp_twin.twin.loader import parse_value
 
 WEIGHT = "weight"
@@ -88,11 +91,49 @@ def _cell(value: Any) -> Any:
     return value
 
 
+MAX_BYTES = 10_000_000  # a targets file is a few points; anything larger is a mistake
+FRACTIONS = ("efficiency", "utilisation")  # shares, 0..1, as in the study tables
+
+
+def kpi_range(name: str) -> tuple[float, float, str]:
+    """The values a measured KPI can take: (low, high, in words)."""
+    if name == "gripping_rate":
+        return 0.0, 100.0, "a percentage 0..100"
+    if name in FRACTIONS or name.endswith("_utilisation"):
+        return 0.0, 1.0, "a share 0..1 (85 % is 0.85)"
+    return 0.0, math.inf, "a number >= 0"
+
+
+def robot_of(name: str) -> int | None:
+    """The robot (1-based) a per-robot KPI column names (``r2_throughput`` -> 2), else None."""
+    m = ROBOT_KPI.match(name)
+    return int(m.group(1)) if m else None
+
+
+def _header(path: Path, text: str) -> None:
+    """Refuse a header that names a column twice (pandas would rename it silently)."""
+    for n, line in enumerate(text.splitlines(), start=1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        names = [c.strip() for c in next(csv.reader([line]), [])]
+        seen: set[str] = set()
+        for c in names:
+            if c in seen:
+                raise StudyError(
+                    f"--targets {path}: line {n}: the header names column '{clip(c, 40)}' "
+                    "twice; give each column once"
+                )
+            seen.add(c)
+        return
+
+
 def _read(path: Path) -> pd.DataFrame:
+    if not path.exists() and not path.is_symlink():
+        raise StudyError(f"--targets: no file '{path}'")
+    text = read_user_text(path, f"--targets {path}", MAX_BYTES, StudyError)
+    _header(path, text)
     try:
-        frame = pd.read_csv(path, comment="#", skipinitialspace=True)
-    except FileNotFoundError:
-        raise StudyError(f"--targets: no file '{path}'") from None
+        frame = pd.read_csv(io.StringIO(text), comment="#", skipinitialspace=True)
     except pd.errors.EmptyDataError:
         raise StudyError(
             f"--targets {path}: is empty; give a header row and a row per point"
@@ -137,17 +178,27 @@ def read_targets(path: str | Path) -> Targets:
         except StudyError as e:
             raise StudyError(f"{e}; or name a KPI ({', '.join(LINE_KPIS)}, r<i>_picks)") from None
     target = np.column_stack([_kpi_column(p, frame, k) for k in kpis])
+    for j, k in enumerate(kpis):
+        low, high, words = kpi_range(k)
+        col = target[:, j]
+        bad = np.flatnonzero(~np.isnan(col) & ~(np.isfinite(col) & (col >= low) & (col <= high)))
+        if len(bad):
+            i = int(bad[0])
+            raise StudyError(
+                f"--targets {p}: row {i + 1}, column {k}: {target[i, j]:g} is not allowed; "
+                f"give {words}"
+            )
     for i, row in enumerate(target):
         if np.all(np.isnan(row)):
             raise StudyError(f"--targets {p}: row {i + 1} has no KPI value; fill at least one")
     weight = np.ones(len(frame))
     if WEIGHT in frame.columns:
         weight = _kpi_column(p, frame, WEIGHT)
-        bad = np.flatnonzero(~(weight >= 0))
+        bad = np.flatnonzero(~((weight >= 0) & np.isfinite(weight)))
         if len(bad):
             raise StudyError(
                 f"--targets {p}: row {bad[0] + 1}, column weight: {weight[bad[0]]} is not "
-                f"allowed; give a number >= 0"
+                f"allowed; give a finite number >= 0"
             )
     values = []
     for i in range(len(frame)):

@@ -23,7 +23,7 @@ from pnp_twin.policies import make_policy
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.twin.errors import UserError, excerpt
 from pnp_twin.twin.loader import ScenarioError, with_overrides
-from pnp_twin.twin.scenario import Scenario, SweepConfig, duplicate_policy
+from pnp_twin.twin.scenario import Scenario, SweepConfig, duplicate_policy, repeated_value
 from pnp_twin.twin.trace import check_replay
 
 RESERVED = {
@@ -142,6 +142,11 @@ def field_path_error(path: str) -> str | None:
         model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
     if model is not None:
         return f"sweep.grid: '{path}' is a section; sweep one of its fields ('{path}.…')"
+    if path == "policy":  # every point runs every policy of the study
+        return (
+            "sweep.grid: 'policy' cannot be swept; compare policies with sweep.policies or "
+            "--policy (each is run at every point)"
+        )
     return None
 
 
@@ -196,6 +201,12 @@ def build_plan(
             raise StudyError(
                 f"sweep.grid.{path}: {excerpt(values)} is not a non-empty list of values"
             )
+        twice = repeated_value(values)
+        if twice is not None:
+            raise StudyError(
+                f"sweep.grid.{path}: {excerpt(twice)} is given twice; give each value once "
+                "(a repeated value runs the same point twice)"
+            )
     twice = duplicate_policy(policies)
     if twice:
         raise StudyError(f"--policy: {twice} (names are case-insensitive); name each policy once")
@@ -247,8 +258,8 @@ def _replications(
             "--half-width: replications = auto needs the target CI half-width of the gripping "
             "rate, in percentage points (e.g. --half-width 0.5 or sweep.half_width)"
         )
-    if not (isinstance(hw, int | float) and math.isfinite(hw) and 0 < hw <= 100):
-        raise StudyError(f"--half-width: {hw!r} is not allowed; give 0 < points <= 100")
+    if not (isinstance(hw, int | float) and math.isfinite(hw) and 0.01 <= hw <= 100):
+        raise StudyError(f"--half-width: {hw!r} is not allowed; give 0.01 <= points <= 100")
     top = (
         max_replications
         if max_replications is not None

@@ -150,6 +150,7 @@ def rank(search: MixSearch, confidence: float) -> list[dict[str, Any]]:
     out = []
     for m in search.order:
         mean, low, high = t_interval([r["gripping_rate"] for r in search.rows[m]], confidence)
+        low, high = max(low, 0.0), min(high, 100.0)  # G is a percentage, as in sweep's tables
         out.append({"mix": m, "gripping_rate_mean": mean, "ci_low": low, "ci_high": high})
     return sorted(out, key=lambda r: -r["gripping_rate_mean"])
 
@@ -176,16 +177,14 @@ def margin(
     }
 
 
-def run_mix(
+def check_mix(
     scenario: Scenario,
-    out: Path,
-    options: Options,
     rules: Sequence[str] | None = None,
     replications: int | None = None,
     budget: int = DEFAULT_BUDGET,
-    alpha: float = ALPHA,
-) -> tuple[Tables, dict[str, Any]]:
-    """Search the best rule mix of ``scenario``'s line into ``out``; tables and mix.json."""
+) -> list[str]:
+    """The rules a mix search of ``scenario`` mixes, every setting checked (rules, budget,
+    the line with each rule on every robot), before its folder is touched."""
     sweep = scenario.sweep
     if rules is None or len(rules) == 0:
         rules = list(sweep.policies) if sweep and sweep.policies else list(RULES)
@@ -197,6 +196,23 @@ def run_mix(
         raise StudyError(f"mix: the rules {rules} name a rule twice")
     if budget < 1:
         raise StudyError(f"--budget: {budget} is not allowed; give 1 or more mixes")
+    n = scenario.robots.count
+    every = [mix_name([r] * n) for r in rules]
+    build_plan(scenario, grid={}, policies=every, replications=replications)
+    return rules
+
+
+def run_mix(
+    scenario: Scenario,
+    out: Path,
+    options: Options,
+    rules: Sequence[str] | None = None,
+    replications: int | None = None,
+    budget: int = DEFAULT_BUDGET,
+    alpha: float = ALPHA,
+) -> tuple[Tables, dict[str, Any]]:
+    """Search the best rule mix of ``scenario``'s line into ``out``; tables and mix.json."""
+    rules = check_mix(scenario, rules, replications, budget)
     n = scenario.robots.count
     method = "exhaustive" if len(rules) ** n <= EXHAUSTIVE_LIMIT else "grasp"
     base = build_plan(scenario, grid={}, policies=[rules[0]], replications=replications)

@@ -325,6 +325,15 @@ CASES: dict[str, Case] = {
     "mix unknown rule": Case(
         ["mix", "rule_mix", "--out", "o", "--rules", "SD,NOPE", *SHORT], ["NOPE"]
     ),
+    "design of a missing file": Case(
+        ["design", "nothere.toml", "--target", "90", "--out", "o"], ["nothere.toml"]
+    ),
+    "capacity of a missing file": Case(
+        ["capacity", "nothere.toml", "--target", "90", "--out", "o"], ["nothere.toml"]
+    ),
+    "headroom of a missing file": Case(
+        ["headroom", "nothere.toml", "--out", "o"], ["nothere.toml"]
+    ),
     # --- study folders: report, export -------------------------------------------------------
     "report of a missing folder": Case(["report", "nothere"], ["nothere"]),
     "report of a file": Case(["report", "f.txt"], ["f.txt"], {"f.txt": "keep"}),

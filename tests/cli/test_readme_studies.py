@@ -37,6 +37,7 @@ def test_the_section_lists_every_study_command() -> None:
     assert {"sweep", "size", "mix", "report", "export"} <= kinds
 
 
+@pytest.mark.timeout(1800)  # the suite's longest: every study command, one on Ray (~90 s alone)
 def test_every_readme_study_command_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     for args in readme_commands():

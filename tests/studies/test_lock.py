@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from pnp_twin.studies.journal import journaled
+
 ROOT = Path(__file__).resolve().parents[2]
 RUNS = 3 * 2 * 4  # rates x policies x replications
 
@@ -69,7 +71,7 @@ def test_a_second_study_into_a_held_folder_is_refused_and_the_first_finishes(tmp
             first.wait()
     df = pd.read_parquet(out / "results.parquet")
     assert len(df) == RUNS and df["run_id"].is_unique
-    assert len(list((out / "runs").glob("*.json"))) == RUNS
+    assert len(journaled(out / "runs")) == RUNS
     assert len(pd.read_csv(out / "summary.csv")) == 6 and (out / "meta.json").exists()
     assert not (out / ".study.lock.json").exists()
     assert not list(out.rglob(".*.tmp")) and not (out / ".replaced").exists()

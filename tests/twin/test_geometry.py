@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pnp_twin.twin.geometry import intercept_time, move_time, position_along
+from pnp_twin.twin.geometry import intercept_time, move_time, position_along, workspaces
 
 
 def quadratic_intercept(dx: float, dy: float, vb: float, vr: float) -> float:
@@ -101,3 +103,33 @@ def test_position_along_endpoints_and_midpoint() -> None:
     # still accelerating after 0.1 s: s = a t^2 / 2 = 0.04 m
     x, y = position_along(start, end, 0.1, 2.0, 8.0)
     assert math.hypot(x, y) == pytest.approx(0.04)
+
+
+def test_workspaces_are_laid_out_with_the_gap_between_them() -> None:
+    # three 0.5 m workspaces from x = 0.3, 0.1 m apart, written out by hand
+    expected = [(0.3, 0.8), (0.9, 1.4), (1.5, 2.0)]
+    assert np.allclose(workspaces(3, 0.3, 0.5, 0.1), expected, rtol=0, atol=1e-12)
+    no_gap = [(0.3, 0.8), (0.8, 1.3), (1.3, 1.8)]
+    assert np.allclose(workspaces(3, 0.3, 0.5, 0.0), no_gap, rtol=0, atol=1e-12)
+    # explicit bounds are taken as given, whatever the gap
+    assert workspaces(2, 0.0, 1.0, 0.3, [(0.1, 0.4), (0.5, 0.7)]) == [(0.1, 0.4), (0.5, 0.7)]
+
+
+def test_a_run_picks_only_inside_the_gapped_workspaces(make_scenario: Callable[..., Any]) -> None:
+    from pnp_twin.policies.registry import make_policy
+    from pnp_twin.twin import simulate
+
+    sc = make_scenario(robots__count=3, robots__workspace_gap=0.1, duration=20.0)
+    bounds = [(0.3, 0.8), (0.9, 1.4), (1.5, 2.0)]  # by hand, not from twin.geometry
+    assert np.allclose(sc.robots.layout(), bounds, rtol=0, atol=1e-12)
+    res = simulate(sc, make_policy("SD"), seed=3)
+    parts, v = res.parts, sc.belt.speed
+    picked = parts[parts["outcome"] == "picked"]
+    x = v * (picked["picked_at"] - picked["fed_at"])
+    for r, (a, b) in enumerate(bounds, start=1):
+        mine = x[picked["robot"] == r]
+        assert len(mine) > 0 and mine.between(a - 1e-9, b + 1e-9).all(), r
+    # a part no robot picked leaves the last workspace at x = 2.0 (1.8 without the gaps)
+    missed = parts[parts["outcome"] == "missed"]
+    assert len(missed) > 0
+    assert np.allclose(missed["left_at"], missed["fed_at"] + 2.0 / v, rtol=0, atol=1e-9)

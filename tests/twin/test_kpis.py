@@ -228,3 +228,33 @@ def test_record_tables_number_robots_from_1(make_scenario) -> None:
     assert 1 in set(picked["robot"].astype(int))
     assert set(r.spans["robot"]) <= set(range(1, n + 1)) and 1 in set(r.spans["robot"])
     assert set(r.decisions["robot"]) == set(range(1, n + 1))
+
+
+def test_efficiency_never_passes_one_by_rounding() -> None:
+    # four robots busy all of a 95 s window: capacity = throughput for each, so the exact
+    # efficiency is 1; summing the four capacities rounds 1 ulp below the throughput
+    from pnp_twin.twin.kpis import STATES, WELCH_BINS, KpiTally, tally_kpis
+
+    picks = np.array([1130, 115, 1541, 1472])
+    span = 95.0
+    assert float((picks / span).sum()) < picks.sum() / span  # the rounding this is about
+    states = np.zeros((4, len(STATES)))
+    states[:, 0] = span
+    cycles = np.full(int(picks.sum()), 0.3)
+    sums = KpiTally(
+        presented=10_000,
+        picked=int(picks.sum()),
+        picks=picks,
+        states=states,
+        cycles=cycles,
+        robot_cycles=cycles,
+        robot_starts=np.concatenate([[0], np.cumsum(picks)]),
+        rules=np.array([0, int(picks.sum())]),
+        noops=0,
+        welch_parts=np.zeros(WELCH_BINS, dtype=np.int64),
+        welch_picked=np.zeros(WELCH_BINS),
+    )
+    specs = [spec(i, 0.3 + 0.5 * i, 0.8 + 0.5 * i) for i in range(4)]
+    k = tally_kpis(sums, ["SD"], specs, 0.0, span)
+    assert k["max_throughput"] < k["throughput"]  # by one ulp
+    assert k["efficiency"] == 1.0
