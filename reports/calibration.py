@@ -19,11 +19,14 @@ from typing import Any
 
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
+from pydantic import BaseModel
 
 from pnp_twin.reports.html import Page, Section, esc, render, table_html
 from pnp_twin.reports.load import ReportError
 from pnp_twin.reports.style import PALETTE, rgba, style
+from pnp_twin.reports.text import param_label
 from pnp_twin.twin.output import write_text
+from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 
@@ -42,15 +45,79 @@ def load_calibration(folder: Path | str) -> dict[str, Any]:
         raise ReportError(f"{path}: not valid JSON ({e.msg}, line {e.lineno})") from None
 
 
+KPI_LABELS = {  # KPI -> (label, unit) as calibration.json holds it
+    "gripping_rate": ("Gripping rate", "%"),
+    "throughput": ("Throughput", "parts/s"),
+    "part_flow": ("Part flow", "parts/s"),
+    "efficiency": ("Efficiency", "fraction"),
+    "utilisation": ("Utilisation", "fraction"),
+    "cycle_time_mean": ("Mean cycle time", "s"),
+    "cycle_time_p95": ("95th percentile cycle time", "s"),
+}
+
+
+def kpi_label(kpi: str) -> str:
+    """'gripping_rate' -> 'Gripping rate (%)': an axis title with its unit."""
+    label, unit = KPI_LABELS.get(kpi, (kpi.replace("_", " ").capitalize(), ""))
+    if not unit and kpi.startswith("cycle_time"):
+        unit = "s"
+    return f"{label} ({unit})" if unit else label
+
+
+def field_unit(path: str) -> str:
+    """The unit of a dotted scenario path (list elements included) in the Scenario model."""
+    model: type[BaseModel] | None = Scenario
+    info = None
+    for key in path.split("."):
+        if key.isdigit():
+            continue
+        if model is None or key not in model.model_fields:
+            return ""
+        info = model.model_fields[key]
+        ann = info.annotation
+        model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+    extra = info.json_schema_extra if info is not None else None
+    unit = extra.get("unit") if isinstance(extra, dict) else None
+    return "" if unit in (None, "1") else str(unit).replace("^2", "²")
+
+
+def field_label(name: str, sep: str = " = ") -> str:
+    """A fitted or varied field as an axis title with its unit: 'robots.bin_offset.1' ->
+    'Bin offset [1] (m)'; fields fitted as one ('a,b') joined by ``sep``."""
+    paths = [p.strip() for p in name.split(",") if p.strip()]
+    words = []
+    for path in paths:
+        keys = path.split(".")
+        index = [k for k in keys if k.isdigit()]
+        base = ".".join(k for k in keys if not k.isdigit())
+        text = param_label(base, unit=False) + (f" [{', '.join(index)}]" if index else "")
+        words.append(text)
+    unit = field_unit(paths[0]) if paths else ""
+    return sep.join(words) + (f" ({unit})" if unit else "")
+
+
 def _label(info: dict[str, Any], row: dict[str, Any]) -> str:
-    cells = ", ".join(f"{v.split('.')[-1]}={row[v]}" for v in info["varied"])
+    def cell(path: str) -> str:
+        unit = field_unit(path)
+        name = field_label(path).removesuffix(f" ({unit})" if unit else "").lower()
+        return f"{name} {row[path]}" + (f" {unit}" if unit else "")
+
+    cells = ", ".join(cell(v) for v in info["varied"])
     return f"{row['point']}: {cells}" if cells else str(row["point"])
 
 
 def _span(row: dict[str, Any]) -> tuple[float, float]:
     if row["ci_low"] is None:
         return 0.0, 0.0
-    return row["ci_high"] - row["predicted"], row["predicted"] - row["ci_low"]
+    low, high = _bounded(row, row["ci_low"], row["ci_high"])
+    return high - row["predicted"], row["predicted"] - low
+
+
+def _bounded(row: dict[str, Any], low: float, high: float) -> tuple[float, float]:
+    """A gripping rate's interval cut to [0, 100] %: no line picks more than it is given."""
+    if row.get("kpi", "gripping_rate") == "gripping_rate":
+        return max(low, 0.0), min(high, 100.0)
+    return low, high
 
 
 def points_figure(info: dict[str, Any], kpi: str) -> go.Figure:
@@ -77,10 +144,11 @@ def points_figure(info: dict[str, Any], kpi: str) -> go.Figure:
         hovertemplate="%{x}<br>twin %{y:.2f}<br>residual %{customdata[0]:+.2f}"
         "<br>policy %{customdata[1]}<extra></extra>",
     )
-    fig.update_yaxes(title=kpi)
+    fig.update_xaxes(title="Measured point", type="category")
+    fig.update_yaxes(title=kpi_label(kpi))
     return style(
         fig,
-        f"Measured vs twin: {kpi}",
+        f"Measured vs twin: {kpi_label(kpi)}",
         "each point at the fitted parameters; bars: 95 % CI over the replications",
         height=400,
     )
@@ -91,8 +159,14 @@ def curve_figure(info: dict[str, Any], field: str, kpi: str) -> go.Figure:
     rows = [r for r in info["curves"] if r["field"] == field and r["kpi"] == kpi]
     xs = [r["value"] for r in rows]
     fig = go.Figure()
-    lows = [r["ci_low"] if r["ci_low"] is not None else r["predicted"] for r in rows]
-    highs = [r["ci_high"] if r["ci_high"] is not None else r["predicted"] for r in rows]
+    lows = [
+        _bounded(r, r["ci_low"], r["ci_high"])[0] if r["ci_low"] is not None else r["predicted"]
+        for r in rows
+    ]
+    highs = [
+        _bounded(r, r["ci_low"], r["ci_high"])[1] if r["ci_high"] is not None else r["predicted"]
+        for r in rows
+    ]
     fig.add_scatter(
         x=xs + xs[::-1],
         y=highs + lows[::-1],
@@ -117,13 +191,13 @@ def curve_figure(info: dict[str, Any], field: str, kpi: str) -> go.Figure:
         name="measured",
         marker={"symbol": "diamond", "size": 12, "color": PALETTE[1]},
     )
-    fig.update_xaxes(title=field)
-    fig.update_yaxes(title=kpi)
-    others = [v for v in info["varied"] if v != field]
+    fig.update_xaxes(title=field_label(field))
+    fig.update_yaxes(title=kpi_label(kpi))
+    others = [field_label(v) for v in info["varied"] if v != field]
     note = f"; {', '.join(others)} as at point 1" if others else ""
     return style(
         fig,
-        f"Fitted response: {kpi} against {field}",
+        f"Fitted response: {kpi_label(kpi)} against {field_label(field).lower()}",
         f"best policy at each value{note}",
         height=420,
     )
@@ -135,9 +209,10 @@ def profile_figure(info: dict[str, Any]) -> go.Figure:
     fig = make_subplots(
         rows=1,
         cols=len(params),
-        subplot_titles=[p["name"] for p in params],
+        subplot_titles=[field_label(p["name"], "<br>= ") for p in params],
         horizontal_spacing=0.08,
     )
+    margin = float(info.get("near_optimal_margin") or 1.0)
     for j, p in enumerate(params, start=1):
         rows = sorted(
             (r for r in info["profiles"] if r["param"] == p["name"] and not r["param_2"]),
@@ -154,15 +229,18 @@ def profile_figure(info: dict[str, Any]) -> go.Figure:
         )
         fig.add_vline(x=p["value"], line_dash="dot", line_color="#5f6b7a", row=1, col=j)
         fig.add_hline(
-            y=info["objective"] + 1.0, line_dash="dash", line_color="#c0392b", row=1, col=j
+            y=info["objective"] + margin, line_dash="dash", line_color="#c0392b", row=1, col=j
         )
-    fig.update_yaxes(title="objective", col=1)
+        unit = field_unit(p["name"].split(",")[0])
+        fig.update_xaxes(title=f"value ({unit})" if unit else "value", row=1, col=j)
+    fig.update_yaxes(title="Objective (weighted squared residuals)", col=1)
     return style(
         fig,
         "How well each parameter is determined",
-        "objective along each parameter, others at the fit; dotted: fitted value; dashed: best + 1",
-        height=400,
-        top=90,
+        "objective along each parameter, others at the fit; dotted: fitted value; "
+        f"dashed: best + {margin:.3g} (95 %, residual and seed noise)",
+        height=440,
+        top=140,  # a two-line caption above subplot titles of up to two lines
     )
 
 
@@ -180,7 +258,7 @@ def pair_figure(info: dict[str, Any], a: str, b: str) -> go.Figure:
             y=ys,
             z=z,
             colorscale="Viridis_r",
-            colorbar={"title": "objective"},
+            colorbar={"title": "Objective"},
             contours={"showlabels": True},
         )
     )
@@ -193,11 +271,11 @@ def pair_figure(info: dict[str, Any], a: str, b: str) -> go.Figure:
         name="fit",
         marker={"symbol": "x", "size": 12, "color": "#c0392b"},
     )
-    fig.update_xaxes(title=a)
-    fig.update_yaxes(title=b)
+    fig.update_xaxes(title=field_label(a))
+    fig.update_yaxes(title=field_label(b))
     return style(
         fig,
-        f"Trade-off: {a} and {b}",
+        f"Trade-off: {field_label(a, ' = ')} and {field_label(b, ' = ')}",
         "objective over both, the other "
         "parameters at the fit; a long diagonal valley: the data cannot fit both",
         height=440,
@@ -223,6 +301,7 @@ def _answer(info: dict[str, Any]) -> str:
 
 def _determined(info: dict[str, Any]) -> str:
     items = []
+    margin = float(info.get("near_optimal_margin") or 1.0)
     for p in info["params"]:
         lo, hi = p["near_optimal"]
         if lo is None or (isinstance(lo, float) and math.isnan(lo)):
@@ -230,22 +309,34 @@ def _determined(info: dict[str, Any]) -> str:
         width = (hi - lo) / (p["high"] - p["low"])
         verdict = "well determined" if width < 0.2 else "poorly determined by these points"
         items.append(
-            f"<li><b>{esc(p['name'])}</b>: objective within +1 of the best for "
+            f"<li><b>{esc(p['name'])}</b>: objective within +{margin:.3g} of the best for "
             f"{lo:.4g} to {hi:.4g} ({100 * width:.0f} % of its bounds): {verdict}.</li>"
         )
-    return f'<ul class="findings">{"".join(items)}</ul>' if items else ""
+    if not items:
+        return ""
+    why = (
+        f"<p class='note'>A value is kept when the objective rises by at most {margin:.3g} "
+        "above its best: 3.84 (chi-square, 1 degree of freedom, 95 %) times the variance of "
+        "one residual, the larger of what the fit leaves and what the seeds give "
+        "(run-to-run noise of the prediction and of the measurement).</p>"
+    )
+    return f'<ul class="findings">{"".join(items)}</ul>' + why
 
 
 def _points_table(info: dict[str, Any]) -> str:
-    head = ["point", *info["varied"], "KPI", "measured", "twin", "95 % CI", "residual", "policy"]
+    head = ["Point", *(field_label(v) for v in info["varied"]), "KPI", "Measured", "Twin"]
+    head += ["95 % CI", "Residual", "Policy"]
     rows = []
     for r in info["points"]:
-        ci = "" if r["ci_low"] is None else f"[{r['ci_low']:.2f}, {r['ci_high']:.2f}]"
+        ci = ""
+        if r["ci_low"] is not None:
+            lo, hi = _bounded(r, r["ci_low"], r["ci_high"])
+            ci = f'<span style="white-space:nowrap">{lo:.2f} to {hi:.2f}</span>'
         rows.append(
             [
                 str(r["point"]),
                 *(esc(r[v]) for v in info["varied"]),
-                esc(r["kpi"]),
+                f'<span style="white-space:nowrap">{esc(kpi_label(r["kpi"]))}</span>',
                 f"{r['target']:.4g}",
                 f"{r['predicted']:.2f}",
                 ci,

@@ -26,12 +26,16 @@ from pnp_twin.reports.style import (
 )
 from pnp_twin.reports.text import (
     at_point,
+    axis_text,
     fmt_pct,
     fmt_value,
+    is_category_axis,
     param_label,
     param_value,
     point_label,
     sizing_rows,
+    sort_rows,
+    sorted_values,
 )
 
 
@@ -53,12 +57,13 @@ def sweep_figure(
     """Mean gripping rate against ``param`` with a 95 % confidence band per policy."""
     colors = colors or policy_colors(policies)
     rows = at_point(summary, fixed)
+    category = is_category_axis(param, rows[param].unique())
     fig = go.Figure()
     for policy in policies:
-        d = rows[rows["policy"] == policy].sort_values(param)
+        d = sort_rows(rows[rows["policy"] == policy], param)
         if d.empty:
             continue
-        x = d[param].tolist()
+        x = [axis_text(param, v) for v in d[param]] if category else d[param].tolist()
         color = colors[policy]
         lo, hi = d.get("gripping_rate_ci_low"), d.get("gripping_rate_ci_high")
         if lo is not None and hi is not None and np.isfinite(lo).any():
@@ -91,7 +96,16 @@ def sweep_figure(
                 "G = %{y:.1f} % ± %{customdata[0]:.1f}<extra></extra>",
             )
         )
-    fig.update_xaxes(title=param_label(param), tickvals=sorted(rows[param].unique().tolist()))
+    values = sorted_values(param, rows[param].unique().tolist())
+    if category:  # no breakdowns is an MTBF of infinity: drawn last, never at 0
+        fig.update_xaxes(
+            title=param_label(param),
+            type="category",
+            categoryorder="array",
+            categoryarray=[axis_text(param, v) for v in values],
+        )
+    else:
+        fig.update_xaxes(title=param_label(param), tickvals=values)
     fig.update_yaxes(title="Gripping rate (%)", ticksuffix=" %")
     mean = rows["gripping_rate_mean"]
     cap_percent(
@@ -114,7 +128,7 @@ def heatmap_figure(
     """Best-policy gripping rate over ``x`` x ``y``, one panel per ``facet`` value (the paper's
     figures 15 to 17 layout), each cell annotated with the rate and the winning policy."""
     rows = at_point(best, fixed)
-    facets = sorted(rows[facet].unique().tolist()) if facet else [None]
+    facets = sorted_values(facet, rows[facet].unique().tolist()) if facet else [None]
     fig = make_subplots(
         rows=1,
         cols=len(facets),
@@ -125,8 +139,8 @@ def heatmap_figure(
     zmin, zmax = float(rows["gripping_rate_mean"].min()), float(rows["gripping_rate_mean"].max())
     if zmax - zmin < 1.0:
         zmin, zmax = zmin - 0.5, zmax + 0.5
-    xs = sorted(rows[x].unique().tolist())
-    ys = sorted(rows[y].unique().tolist())
+    xs = sorted_values(x, rows[x].unique().tolist())
+    ys = sorted_values(y, rows[y].unique().tolist())
     for col, value in enumerate(facets, start=1):
         d = rows if facet is None else rows[rows[facet] == value]
         z = d.pivot_table(index=y, columns=x, values="gripping_rate_mean").reindex(
@@ -137,8 +151,8 @@ def heatmap_figure(
         )
         fig.add_trace(
             go.Heatmap(
-                x=[fmt_value(v) for v in xs],
-                y=[fmt_value(v) for v in ys],
+                x=[axis_text(x, v) for v in xs],
+                y=[axis_text(y, v) for v in ys],
                 z=z.to_numpy(),
                 text=who.fillna("").to_numpy(),
                 zmin=zmin,
@@ -327,7 +341,7 @@ def sizing_figure(sizing: dict[str, Any]) -> go.Figure:
         "Sizing: gripping rate against " + param_label(param, False).lower(),
         f"Target G ≥ {fmt_pct(number(target, math.nan))} with "
         f"{100 * number(sizing.get('confidence'), 0.95):g} % confidence: filled markers reach it "
-        "· error bars: CI · best policy at each point",
+        "· error bars: CI of the rule to run at each point (Bonferroni over the rules)",
     )
 
 

@@ -11,7 +11,7 @@ from typing import Any
 import pandas as pd
 
 from pnp_twin.reports import figures, record_figures, style, welch
-from pnp_twin.reports.answers import headline, precision_text
+from pnp_twin.reports.answers import NO_INTERVAL, headline, one_trace, precision_text
 from pnp_twin.reports.html import Page, Section, esc, table_html
 from pnp_twin.reports.load import Study
 from pnp_twin.reports.mix_ranking import mix_section
@@ -27,8 +27,10 @@ from pnp_twin.reports.text import (
     point_label,
     reference_point,
     scenario_value,
+    sizing_rows,
     sizing_text,
 )
+from pnp_twin.reports.whatif import whatif_html
 
 TIMELINE_SECONDS = 20.0
 MAX_POLICIES = 8  # one colour each in style.PALETTE
@@ -83,28 +85,67 @@ def showcase_point(study: Study) -> tuple[dict[str, Any], str]:
     return point, policy
 
 
-def cards(study: Study) -> list[tuple[str, str, str]]:
-    """The headline numbers under the title."""
-    s = study.summary
-    top = s.loc[s["gripping_rate_mean"].idxmax()]
-    out = [
+def sizing_cards(sizing: dict[str, Any], trace: bool = False) -> list[tuple[str, str, str]]:
+    """A sizing study's headline numbers: what to buy and run, the promise (the lower
+    confidence bound of G there, which is what the target is met with) and the count to
+    plan with breakdowns (with the MTBF and MTTR it assumes)."""
+    answer = sizing.get("answer")
+    target = float(sizing.get("target") or math.nan)
+    conf = 100 * float(sizing.get("confidence") or 0.95)
+    rule = sizing.get("rule")
+    row = next(
         (
-            "Best gripping rate",
-            fmt_pct(top["gripping_rate_mean"]),
-            f"{top['policy']}" + (f" · {point_label(top, list(study.grid))}" if study.grid else ""),
-        )
-    ]
-    if study.sizing is not None:
-        answer = study.sizing.get("answer")
-        out.insert(
-            0,
+            r
+            for r in sizing_rows(sizing)
+            if r["value"] == answer and r["condition"] in ("", "no breakdowns")
+        ),
+        None,
+    )
+    if answer is None:
+        out = [("Sizing answer", "not reached", f"no count tried reaches G ≥ {fmt_pct(target)}")]
+    else:
+        out = [
             (
-                "Sizing answer",
-                "not reached" if answer is None else fmt_value(answer),
-                f"{param_label(str(study.sizing.get('parameter') or 'robots.count'), False)}"
-                f" for G ≥ {fmt_pct(float(study.sizing.get('target') or math.nan))}",
-            ),
+                "Buy",
+                f"{fmt_value(answer)} robots",
+                (f"running {rule} · " if rule else "") + f"for G ≥ {fmt_pct(target)}",
+            )
+        ]
+        if row is not None and trace:
+            out.append(("Promise", fmt_pct(row["mean"]), "one replayed trace: no interval"))
+        elif row is not None and row["ci_low"] is not None:
+            out.append(
+                (
+                    "Promise",
+                    f"G ≥ {fmt_pct(float(row['ci_low']))}",
+                    f"with {conf:g} % confidence (mean {fmt_pct(row['mean'])})",
+                )
+            )
+    down = sizing.get("breakdown") or {}
+    if down.get("mtbf") is not None:
+        n = down.get("n_with_failures")
+        out.append(
+            (
+                "With breakdowns",
+                "not reached" if n is None else f"{fmt_value(n)} robots",
+                f"MTBF {fmt_value(down['mtbf'])} s, MTTR {fmt_value(down.get('mttr'))} s"
+                + (" (assumed)" if down.get("assumed") else ""),
+            )
         )
+    return out
+
+
+def cards(study: Study) -> list[tuple[str, str, str]]:
+    """The headline numbers under the title (a sizing study: its answer and promise first,
+    not the best G of the largest line)."""
+    s = study.summary
+    if study.sizing is not None:
+        out = sizing_cards(study.sizing, one_trace(study.meta))
+    else:
+        top = s.loc[s["gripping_rate_mean"].idxmax()]
+        where = f" · {point_label(top, list(study.grid))}" if study.grid else ""
+        best = fmt_pct(top["gripping_rate_mean"])
+        out = [("Best gripping rate", best, f"{top['policy']}{where}")]
     points = len(study.best) if study.best is not None else 1
     if study.varying:
         out.append(("Grid points", str(points), f"{len(study.varying)} parameter(s) varied"))
@@ -169,8 +210,7 @@ def facts(study: Study) -> str:
         f"{scenario_value(scenario, 'robots.count')} robots",
         f"arm {fmt_value(scenario_value(scenario, 'robots.arm_speed'))} m/s",
         f"belt {fmt_value(scenario_value(scenario, 'belt.speed'))} m/s",
-        f"{fmt_value(scenario_value(scenario, 'feeder.rate'))} parts/s "
-        f"({scenario_value(scenario, 'feeder.arrival')})",
+        flow_text(study),
         f"termination {scenario_value(scenario, 'termination')}",
     ]
     if scenario:
@@ -213,6 +253,22 @@ def facts(study: Study) -> str:
     return f'<table class="facts"><tbody>{body}</tbody></table>'
 
 
+def flow_text(study: Study) -> str:
+    """The base line's part flow: '10 parts/s (poisson)', or for a replayed trace its real
+    mean rate ('7.17 parts/s mean of the trace sample.csv'), never the unused feeder.rate."""
+    scenario = study.meta.get("scenario") or {}
+    arrival = scenario_value(scenario, "feeder.arrival")
+    if arrival != "trace":
+        return f"{fmt_value(scenario_value(scenario, 'feeder.rate'))} parts/s ({arrival})"
+    info = study.meta.get("trace") or {}
+    rate = info.get("mean_rate")
+    name = info.get("file") or str(scenario_value(scenario, "feeder.trace") or "")
+    if rate is None and study.results is not None and "part_flow" in study.results.columns:
+        rate = float(study.results["part_flow"].mean())  # what the runs were fed
+    shown = f"{float(rate):.3g} parts/s" if rate is not None else "the rate"
+    return f"{shown} mean of the replayed trace {name}".rstrip()
+
+
 def kpi_table(study: Study) -> str:
     """Mean KPIs with 95 % CI per grid point and policy; the best policy's row highlighted."""
     s = study.summary
@@ -225,10 +281,14 @@ def kpi_table(study: Study) -> str:
         for _, r in (best if best is not None else s).iterrows()
     }
 
+    trace = one_trace(study.meta)
+
     def cell(row: pd.Series, kpi: str, scale: float, digits: int, unit: str = "") -> str:
         mean = row.get(f"{kpi}_mean", math.nan) * scale
         if not math.isfinite(mean):
             return "–"
+        if trace:  # one replayed trace is one sample: no interval
+            return f"{mean:.{digits}f}{unit}"
         pm = fmt_pm(
             row.get(f"{kpi}_ci_low", math.nan) * scale,
             row.get(f"{kpi}_ci_high", math.nan) * scale,
@@ -268,8 +328,14 @@ def answer_section(study: Study) -> Section:
     sentences = [headline(study)]
     if precision_text(study.meta):
         sentences.append(precision_text(study.meta))
+    if one_trace(study.meta):
+        sentences.append(
+            "Every replication replays the same recorded trace, so together they are one "
+            f"sample ({NO_INTERVAL}): replay several traces for an interval, or add --set "
+            "feeder.arrival=poisson to see the same mean rate with random gaps."
+        )
     if study.sizing is not None:
-        sentences += sizing_text(study.sizing)[1:]
+        sentences += sizing_text(study.sizing, one_trace(study.meta))[1:]
         layout = study.sizing.get("layout") or {}
         if layout:
             sentences.append(layout_sentence(study.sizing))
@@ -286,6 +352,44 @@ def layout_sentence(sizing: dict[str, Any]) -> str:
     """How the robots were laid out (extend the belt, or share it), as sizing.json says."""
     layout = sizing.get("layout") or {}
     return str(layout.get("text") or f"Layout: {layout.get('mode', 'extend')}.")
+
+
+def whatif_section(study: Study) -> Section | None:
+    """Drop-downs over the stored grid and the rules: G with its interval at any combination
+    the study ran (nothing is simulated)."""
+    grid = list(study.grid)
+    if not grid and len(study.policies) < 2:
+        return None
+    s = study.summary
+    best = study.best
+    winners = {
+        tuple(r[p] for p in grid): str(r["policy"])
+        for _, r in (best if best is not None else s).iterrows()
+    }
+    trace = one_trace(study.meta)
+    rows = []
+    for _, r in s.iterrows():
+        here = tuple(r[p] for p in grid)
+        rows.append(
+            {
+                "values": {p: r[p] for p in grid},
+                "policy": r["policy"],
+                "mean": r["gripping_rate_mean"],
+                "low": None if trace else r.get("gripping_rate_ci_low"),
+                "high": None if trace else r.get("gripping_rate_ci_high"),
+                "note": "the best rule here"
+                if len(study.policies) > 1 and winners.get(here) == r["policy"]
+                else "",
+            }
+        )
+    ref = reference_point(study)
+    start = {**ref, "policy": winners.get(tuple(ref[p] for p in grid), study.policies[0])}
+    conf = f"{100 * float(study.meta.get('confidence') or 0.95):g} %"
+    panel = whatif_html(grid, rows, conf, start)
+    intro = "Choose a value of each swept field and a rule: the gripping rate the study "
+    intro += "measured there, with its confidence interval (from the stored runs; nothing is "
+    intro += "simulated)."
+    return Section("whatif", "What if", esc(intro), [panel])
 
 
 def sweep_section(study: Study) -> Section | None:
@@ -423,6 +527,7 @@ def build_page(study: Study, animation: record_figures.Animation | None = None) 
         mix_section(study),
         summary,
         Section("setup", "What was run", "", [facts(study)]),
+        whatif_section(study),
         sweep_section(study),
         heatmap_section(study),
         policy_section(study),

@@ -29,10 +29,11 @@ def run_headline(kpis: Mapping[str, Any]) -> str:
         f"With {kpis.get('policy')} the line grips {fmt_pct(kpis['gripping_rate'])} of the "
         f"{kpis['parts_presented']} parts presented ({kpis['throughput']:.2f} of "
         f"{kpis['part_flow']:.2f} parts/s), losing {kpis['parts_missed']} to the return "
-        f"conveyor; efficiency {fmt_pct(100 * kpis['efficiency'])}"
+        "conveyor"
     )
     if busiest is not None:
-        out += f", robot {busiest['robot']} the busiest at {fmt_pct(100 * busiest['utilisation'])}"
+        out += f"; robot {busiest['robot']} is the busiest at "
+        out += f"{fmt_pct(100 * busiest['utilisation'])} utilisation"
     return out + " (one run: no confidence interval; use a study for one)."
 
 
@@ -85,6 +86,49 @@ def robot_rows(kpis: Mapping[str, Any]) -> str:
     return table_html(header, rows, left=0)
 
 
+SETTINGS = (  # (field, header, unit) of the per-robot settings table
+    ("arm_speed", "Arm speed", "m/s"),
+    ("pick_time", "Pick time", "s"),
+    ("place_time", "Place time", "s"),
+    ("acceleration", "Acceleration", "m/s²"),
+    ("bin_offset", "Bin offset", "m"),
+    ("mtbf", "MTBF", "s"),
+    ("mttr", "MTTR", "s"),
+)
+
+
+def settings_rows(scenario: Mapping[str, Any]) -> str:
+    """Each robot's settings, one row per robot: the shared value, or its override (marked
+    ●); empty when the scenario overrides nothing."""
+    robots = scenario.get("robots") or {}
+    overrides = {int(o["robot"]): o for o in robots.get("overrides") or [] if "robot" in o}
+    if not overrides:
+        return ""
+    n = int(robots.get("count") or max(overrides))
+    header = ["Robot", *(f"{h} ({u})" for _, h, u in SETTINGS)]
+    rows = []
+    for i in range(1, n + 1):
+        own = overrides.get(i) or {}
+        row = [str(i)]
+        for key, _, _ in SETTINGS:
+            value = own.get(key)
+            if value is not None:
+                row.append(f"<b>{esc(_num(value))}</b> ●")
+            else:
+                shared = robots.get(key)
+                row.append(esc(_num(shared)) if shared is not None else "–")
+        rows.append(row)
+    note = '<p class="note">● overridden for this robot (robots.overrides); the rest are '
+    note += "the line's shared values. An MTBF of 0 means no breakdowns.</p>"
+    return table_html(header, rows, left=0) + note
+
+
+def _num(value: Any) -> str:
+    if isinstance(value, list | tuple):
+        return ", ".join(_num(v) for v in value)
+    return f"{float(value):g}" if isinstance(value, int | float) else str(value)
+
+
 def build_run_page(
     kpis: Mapping[str, Any],
     parts: pd.DataFrame,
@@ -126,6 +170,12 @@ def build_run_page(
             "KPIs",
             esc(f"Parts fed in [{warmup:g}, {duration:g}) s."),
             [kpi_rows(kpis), robot_rows(kpis)],
+        ),
+        Section(
+            "settings",
+            "Per-robot settings",
+            esc("Where the robots differ: each robot's settings, its overrides marked."),
+            [settings_rows(scenario)] if settings_rows(scenario) else [],
         ),
         Section("robots", "Robots", "", items),
         Section("run", "The run up close", "", records),

@@ -63,8 +63,11 @@ def style(
 ) -> go.Figure:
     """The house look: white template, system fonts, title with a grey subtitle."""
     text = f"<b>{title}</b>"
-    if subtitle:
-        text += f"<br><span style='font-size:12px;color:#5f6b7a'>{subtitle}</span>"
+    lines = wrap_caption(subtitle) if subtitle else []
+    for line in lines:  # a long caption wraps: a printed page is narrower than a screen
+        text += f"<br><span style='font-size:12px;color:#5f6b7a'>{line}</span>"
+    if len(lines) > 1:
+        top = max(top, 60 + 18 * len(lines))
     fig.update_layout(
         template="plotly_white",
         title={"text": text, "x": 0.0, "xanchor": "left", "font": {"size": 16}},
@@ -75,6 +78,31 @@ def style(
         hoverlabel={"font": {"family": FONT}},
     )
     return fig
+
+
+CAPTION_WIDTH = 92  # characters of 12 px text that fit across a figure printed on A4
+
+
+def wrap_caption(text: str, width: int = CAPTION_WIDTH) -> list[str]:
+    """``text`` in lines of at most ``width`` characters, broken after ' · ', '; ' or ', '
+    where it can (else between words), so a printed figure never cuts its caption."""
+    if len(text) <= width:
+        return [text]
+    for sep in (" · ", "; ", ", ", " "):
+        pieces = text.split(sep)
+        if len(pieces) < 2:
+            continue
+        lines, line = [], pieces[0]
+        for piece in pieces[1:]:
+            if len(line) + len(sep) + len(piece) <= width:
+                line += sep + piece
+            else:
+                lines.append(line + sep.rstrip())
+                line = piece
+        lines.append(line)
+        if all(len(x) <= width for x in lines) or sep == " ":
+            return lines
+    return [text]
 
 
 def cap_percent(fig: go.Figure, lows: Sequence[Any], highs: Sequence[Any]) -> None:

@@ -57,6 +57,48 @@ def param_value(path: str, value: Any, lower: bool = False) -> str:
     return f"{label} {fmt_value(value)}{' ' + unit if unit else ''}"
 
 
+NEVER = "robots.mtbf"  # 0 means no breakdowns: an MTBF of infinity, not of zero
+
+
+def order_key(path: str, value: Any) -> Any:
+    """Sort key of a grid value along its axis: an MTBF of 0 (no breakdowns) is infinitely
+    reliable, so it sorts after every real MTBF."""
+    if path == NEVER and not value:
+        return math.inf
+    return value
+
+
+def sorted_values(path: str, values: Any) -> list[Any]:
+    """``values`` in axis order (:func:`order_key`)."""
+    return sorted(list(values), key=lambda v: order_key(path, v))
+
+
+def sort_rows(frame: pd.DataFrame, path: str) -> pd.DataFrame:
+    """``frame`` sorted along the ``path`` axis (:func:`order_key`)."""
+    keys = [order_key(path, v) for v in frame[path]]
+    return frame.iloc[sorted(range(len(frame)), key=keys.__getitem__)]
+
+
+def axis_text(path: str, value: Any) -> str:
+    """A grid value as an axis tick: '600', or 'none (∞)' for an MTBF of 0."""
+    if path == NEVER and not value:
+        return "none (∞)"
+    return fmt_value(value)
+
+
+def is_category_axis(path: str, values: Any) -> bool:
+    """True when the axis cannot be numeric: an MTBF axis that holds 'no breakdowns'."""
+    return path == NEVER and any(not v for v in values)
+
+
+def value_text(path: str, value: Any) -> str:
+    """'600 s'; 'no breakdowns' for an MTBF of 0."""
+    if path == NEVER and not value:
+        return "no breakdowns"
+    unit = PARAMS.get(path, ("", "", ""))[2]
+    return f"{fmt_value(value)}{' ' + unit if unit else ''}"
+
+
 def point_label(row: pd.Series | dict[str, Any], grid: list[str]) -> str:
     """A grid point in a few words: 'belt 0.8 · arm 4 · flow 12'."""
     parts = []
@@ -136,6 +178,7 @@ def _get(row: dict[str, Any], *keys: str) -> Any:
 
 SIZING_KEYS = {"value", "count", "point", "policy", "reached", "mean", "gripping_rate_mean"}
 SIZING_KEYS |= {"ci_low", "ci_high", "gripping_rate_ci_low", "gripping_rate_ci_high"}
+SIZING_KEYS |= {"rules", "confidence_each"}  # how the rule was picked, not a condition
 
 
 def sizing_rows(sizing: dict[str, Any]) -> list[dict[str, Any]]:
@@ -170,7 +213,7 @@ def condition_text(values: dict[str, Any]) -> str:
     return ", ".join(words)
 
 
-def sizing_text(sizing: dict[str, Any]) -> list[str]:
+def sizing_text(sizing: dict[str, Any], trace: bool = False) -> list[str]:
     """The sizing answer in plain sentences, the answer first."""
     param = str(sizing.get("parameter") or "robots.count")
     target = float(sizing.get("target") or math.nan)
@@ -195,13 +238,28 @@ def sizing_text(sizing: dict[str, Any]) -> list[str]:
             head = f"The line needs {fmt_value(answer)} robots to reach {goal}"
         else:
             head = f"{param_value(param, answer)} is what reaches {goal}"
-        row = next((r for r in rows if r["value"] == answer), None)
-        if row is not None and row["mean"] is not None:
+        row = next(
+            (r for r in rows if r["value"] == answer and r["condition"] in ("", "no breakdowns")),
+            None,
+        )
+        rule = sizing.get("rule") or (row or {}).get("policy")
+        if rule and param == "robots.count":
+            head += f", running {rule}"
+        if row is not None and row["mean"] is not None and trace:
+            head += f" (mean {fmt_pct(row['mean'])}; one replayed trace: no interval)"
+        elif row is not None and row["mean"] is not None:
             lo, hi = row["ci_low"], row["ci_high"]
             # a t-interval of few replications can pass 100 %, which no line can
-            ci = f", 95 % CI {lo:.1f} to {min(hi, 100.0):.1f} %" if lo is not None and hi else ""
+            ci = (
+                f", {conf * 100:g} % CI {lo:.1f} to {min(hi, 100.0):.1f} %"
+                if lo is not None and hi
+                else ""
+            )
             head += f" (mean {fmt_pct(row['mean'])}{ci})"
         out.append(head + ".")
+    chosen = (sizing.get("selection") or {}).get("text")
+    if chosen:
+        out.append(str(chosen))
     thumb = sizing.get("rule_of_thumb") or {}
     n_min, flow, ppas = thumb.get("n_min"), thumb.get("part_flow"), thumb.get("ppas")
     if n_min is not None and flow is not None and ppas is not None:
@@ -213,13 +271,22 @@ def sizing_text(sizing: dict[str, Any]) -> list[str]:
             s += f", {fmt_value(thumb['n_recommended'])} with the safety margin"
         out.append(s + ".")
     down = sizing.get("breakdown") or {}
-    if down.get("n_with_failures") is not None:
+    if down:
         avail = down.get("availability")
-        s = "Allowing for breakdowns"
+        words = []
+        if down.get("mtbf") is not None and down.get("mttr") is not None:
+            words.append(
+                f"MTBF {fmt_value(down['mtbf'])} s, MTTR {fmt_value(down['mttr'])} s"
+                + (" (assumed: the scenario sets no breakdowns)" if down.get("assumed") else "")
+            )
         if avail is not None:
-            s += f" (availability {100 * float(avail):.1f} %)"
-        n = down["n_with_failures"]
-        out.append(f"{s}, plan for {fmt_value(n)} robot{'' if n == 1 else 's'}.")
+            words.append(f"availability {100 * float(avail):.1f} %")
+        s = "Allowing for breakdowns" + (f" ({'; '.join(words)})" if words else "")
+        n = down.get("n_with_failures")
+        if n is not None:
+            out.append(f"{s}, plan for {fmt_value(n)} robot{'' if n == 1 else 's'}.")
+        elif words:
+            out.append(f"{s}, no robot count tried reaches the target.")
     minus = down.get("n_minus_1")
     if isinstance(minus, dict) and minus.get("gripping_rate_mean") is not None:
         working = minus.get("robots", minus.get("robots.count", "N − 1"))
@@ -230,8 +297,59 @@ def sizing_text(sizing: dict[str, Any]) -> list[str]:
     return out
 
 
+def mix_findings(study: Study) -> list[str]:
+    """A rule-mix search in a few sentences, never a list of every mix: the best and the
+    runner-up (the best minus the runner-up, so a positive gap means the best is ahead),
+    how many mixes cannot be told from the best, the best uniform rule and the worst mix."""
+    mix = study.mix or {}
+    ranked = mix.get("ranked") or []
+    if not ranked:
+        return ["The rule-mix search ranked no mix."]
+    top = ranked[0]
+    best_g = float(top["gripping_rate_mean"])
+    out = [f"{len(ranked)} mixes evaluated; the best, {top['mix']}, grips {fmt_pct(best_g)}."]
+    m = mix.get("margin")
+    if m and len(ranked) > 1:
+        gap = float(m["diff_mean"])
+        lo, hi = m.get("ci_low"), m.get("ci_high")
+        ci = (
+            f" (paired 95 % CI {float(lo):.2f} to {float(hi):.2f})"
+            if lo is not None and hi is not None and math.isfinite(float(lo))
+            else ""
+        )
+        out.append(f"The runner-up, {m['runner_up']}, is {gap:.2f} points behind the best{ci}.")
+    paired = study.paired
+    if paired is not None and not paired.empty and len(ranked) > 2:
+        others = paired[paired["policy"] != paired["reference"]]
+        tied = others[others["diff_ci_high"] >= 0]
+        if len(tied):
+            out.append(
+                f"{len(tied)} of the other {len(others)} mixes cannot be told apart from the "
+                "best (their paired 95 % CI of the difference reaches zero)."
+            )
+    uniform = [r for r in ranked if len(set(str(r["mix"]).split(","))) == 1]
+    if uniform and uniform[0] is not top:
+        u = uniform[0]
+        rule = str(u["mix"]).split(",")[0]
+        below = best_g - float(u["gripping_rate_mean"])
+        out.append(
+            f"The best single rule on every robot, {rule}, grips "
+            f"{fmt_pct(float(u['gripping_rate_mean']))}: {below:.2f} points below the best mix."
+        )
+    if len(ranked) > 2:
+        worst = ranked[-1]
+        below = best_g - float(worst["gripping_rate_mean"])
+        out.append(
+            f"The worst mix, {worst['mix']}, grips {fmt_pct(float(worst['gripping_rate_mean']))}"
+            f": {below:.2f} points below the best."
+        )
+    return out
+
+
 def key_findings(study: Study) -> list[str]:
     """Three to six plain sentences: best and worst point, policy wins, parameter effects."""
+    if study.mix is not None:
+        return mix_findings(study)
     s = study.summary
     grid = list(study.grid)
     out = []
@@ -262,19 +380,49 @@ def key_findings(study: Study) -> list[str]:
                     + "."
                 )
     ref = reference_point(study)
+    bursts = burst_cost(study)
+    if bursts:
+        out.append(bursts)
     for path in study.varying:
+        if path == "feeder.arrival":
+            continue  # said by burst_cost, in words
         fixed = {k: v for k, v in ref.items() if k != path}
-        rows = at_point(study.best if best is not None else s, fixed).sort_values(path)
+        rows = at_point(study.best if best is not None else s, fixed)
+        rows = sort_rows(rows, path)
         if len(rows) >= 2:
             a, b = rows.iloc[0], rows.iloc[-1]
             out.append(
-                f"{param_label(path, unit=False)} from {fmt_value(a[path])} to "
-                f"{fmt_value(b[path])}{(' ' + PARAMS.get(path, ('', '', ''))[2]).rstrip()}: best "
-                "gripping "
+                f"{param_label(path, unit=False)} from {value_text(path, a[path])} to "
+                f"{value_text(path, b[path])}: best gripping "
                 f"rate {fmt_pct(a['gripping_rate_mean'])} → {fmt_pct(b['gripping_rate_mean'])}"
                 + (f" ({point_text(fixed, list(fixed))})." if fixed else ".")
             )
     return out
+
+
+def burst_cost(study: Study) -> str:
+    """With ``feeder.arrival`` swept over a trace and random arrivals at the trace's mean
+    rate: what the trace's burstiness costs, in points of the best G ('' otherwise)."""
+    values = study.grid.get("feeder.arrival") or []
+    if "trace" not in values or len(values) < 2 or study.best is None:
+        return ""
+    ref = {k: v for k, v in reference_point(study).items() if k != "feeder.arrival"}
+    rows = at_point(study.best, ref)
+    g = {str(r["feeder.arrival"]): float(r["gripping_rate_mean"]) for _, r in rows.iterrows()}
+    if "trace" not in g:
+        return ""
+    names = {"poisson": "Poisson arrivals", "normal": "normal gaps with the trace's CV"}
+    names["fixed"] = "evenly spaced parts"
+    others = [a for a in ("poisson", "normal", "fixed") if a in g]
+    if not others:
+        return ""
+    first = others[0]
+    words = ", ".join(f"{names[a]} {fmt_pct(g[a])}" for a in others)
+    where = f" ({point_text(ref, list(ref))})" if ref else ""
+    return (
+        f"Bursts cost {g[first] - g['trace']:.1f} points: the replayed trace grips "
+        f"{fmt_pct(g['trace'])}, at the same mean rate {words}{where}."
+    )
 
 
 def policy_gaps(study: Study) -> pd.Series:

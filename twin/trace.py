@@ -23,8 +23,10 @@ import csv
 import io
 import logging
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -90,7 +92,10 @@ def _header(path: Path, header: list[str] | None) -> list[str]:
             "header with columns time, y[, kind]"
         )
     if len(set(names)) != len(names):
-        raise TraceError(f"{where} line 1: the header names a column twice")
+        twice = next(n for i, n in enumerate(names) if n in names[:i])
+        raise TraceError(
+            f"{where} line 1: the header names column '{twice}' twice; give each column once"
+        )
     return names
 
 
@@ -210,3 +215,50 @@ def check_replay(scenario: Scenario) -> Trace | None:
             f"[{scenario.warmup:g}, {scenario.duration:g}) s; lower warmup or raise duration"
         )
     return trace
+
+
+def gap_stats(trace: Trace) -> tuple[float, float]:
+    """(mean rate in parts/s, coefficient of variation of the gaps) of a trace: the rate is
+    the parts after the first over the span they arrive in."""
+    gaps = np.diff(trace.times)
+    if len(gaps) == 0 or float(gaps.sum()) <= 0:
+        return math.nan, math.nan
+    mean = float(gaps.mean())
+    cv = float(gaps.std(ddof=1)) / mean if len(gaps) > 1 else 0.0
+    return 1.0 / mean, cv
+
+
+def arrival_from_trace(
+    data: dict[str, Any], overrides: Mapping[str, Any], source_dir: str | Path | None
+) -> tuple[dict[str, Any], str | None]:
+    """``--set feeder.arrival=poisson`` (or normal, fixed) on a scenario that replays a
+    trace: the trace is dropped and its mean rate (and, for normal gaps, its coefficient of
+    variation) become ``feeder.rate`` (and ``feeder.cv``) unless those are set too. Returns
+    the raw scenario data to override and the line saying so (None when nothing changed)."""
+    feeder = data.get("feeder")
+    arrival = overrides.get("feeder.arrival")
+    if (
+        not isinstance(feeder, dict)
+        or feeder.get("arrival") != "trace"
+        or not feeder.get("trace")
+        or arrival in (None, "trace")
+        or "feeder.trace" in overrides
+    ):
+        return data, None
+    path = resolve(str(feeder["trace"]), source_dir)
+    width = (data.get("belt") or {}).get("width")
+    trace = load_trace(path, float(width) if isinstance(width, int | float) else math.inf)
+    rate, cv = gap_stats(trace)
+    out = {**data, "feeder": {k: v for k, v in feeder.items() if k != "trace"}}
+    said = []
+    if "feeder.rate" not in overrides and math.isfinite(rate):
+        out["feeder"]["rate"] = round(rate, 6)
+        said.append(f"its mean rate {rate:.4g} parts/s")
+    if arrival == "normal" and "feeder.cv" not in overrides and math.isfinite(cv):
+        out["feeder"]["cv"] = round(min(cv, 10.0), 6)
+        said.append(f"its gaps' coefficient of variation {cv:.3g}")
+    what = " and ".join(said) or "the rate and CV you set"
+    return out, (
+        f"feeder.arrival = {arrival}: replaces the trace '{path.name}' ({len(trace.times)} parts) "
+        f"with {arrival} arrivals at {what}"
+    )

@@ -26,6 +26,9 @@ COMMANDS: dict[str, str] = {
     "train": "learn_cmd",
     "evaluate": "learn_cmd",
     "calibrate": "calibrate_cmd",
+    "capacity": "capacity_cmd",
+    "design": "design_cmd",
+    "headroom": "headroom_cmd",
 }
 """Each command and the module (in this package) that registers it, in ``--help`` order."""
 

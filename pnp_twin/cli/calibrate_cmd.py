@@ -30,19 +30,24 @@ from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.policies import RULES
 from pnp_twin.studies.calibrate import Problem, calibrate, check_problem
 from pnp_twin.studies.calibrate_eval import EVALS
-from pnp_twin.studies.calibrate_fields import check_distinct, parse_fit
-from pnp_twin.studies.calibrate_output import write_outputs
+from pnp_twin.studies.calibrate_fields import apply_values, check_distinct, parse_fit
+from pnp_twin.studies.calibrate_output import SUMMARY_FILE, write_outputs
 from pnp_twin.studies.calibrate_targets import read_targets
 from pnp_twin.studies.lock import StudyLock
 from pnp_twin.studies.plan import StudyError
-from pnp_twin.twin.loader import load_scenario, parse_sets
-from pnp_twin.twin.output import dumps_json
+from pnp_twin.twin import budget
+from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
+from pnp_twin.twin.output import check_out_folder, dumps_json, removed_if_refused
+from pnp_twin.twin.trace import trace_file
+
+OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
+"""Entries that make a folder one of our calibrations (to resume)."""
 
 
-def _check_out(out: Path) -> StudyLock:
-    """The output folder, locked (a second calibration into it is refused at once)."""
-    if out.exists() and not out.is_dir():
-        raise StudyError(f"--out {out}: is a file; give a folder")
+def _check_out(out: Path, inputs: dict[str, Path | None]) -> StudyLock:
+    """The output folder, locked (a second calibration into it is refused at once); checked
+    first: not a file, not a folder of other files, not a folder holding an input."""
+    check_out_folder(out, inputs, OURS)
     lock = StudyLock(out)
     lock.acquire(shlex.join(["pnp-twin", *sys.argv[1:]]))
     return lock
@@ -92,6 +97,25 @@ def _problem(
     return problem, overrides
 
 
+def _check_work(problem: Problem, force: bool) -> None:
+    """The fit's work within :mod:`twin.budget`'s limits unless --force: at most
+    MAX_RUNS runs (evaluations, profiles and pair grids, at every point, with every policy
+    and replication), none of them above MAX_PARTS parts."""
+    t, k = problem.targets, len(problem.params)
+    evals = problem.max_evals + problem.profile * k + problem.pairs**2 * (k * (k - 1) // 2)
+    runs = evals * t.n * len(problem.policies) * problem.replications
+    if runs > budget.MAX_RUNS and not force:
+        raise budget.BudgetError(
+            f"--replications: the fit may simulate {runs:,} runs ({evals} evaluations x {t.n} "
+            f"points x {len(problem.policies)} policies x {problem.replications} replications), "
+            f"above the limit of {budget.MAX_RUNS:,}; lower --max-evals, --profile, --pairs or "
+            f"--replications, {budget.FORCE}"
+        )
+    for i in range(t.n):
+        values = {**t.point(i), **problem.values(problem.start().tolist())}
+        budget.check_run(apply_values(problem.scenario, values), force)
+
+
 def _points_table(info: dict[str, Any]) -> Table:
     t = Table(title="Measured vs predicted (95 % CI)", box=box.SIMPLE)
     for c in ["point", *info["varied"], "KPI", "measured", "predicted", "residual", "policy"]:
@@ -112,7 +136,8 @@ def _points_table(info: dict[str, Any]) -> Table:
 
 def _fitted_table(info: dict[str, Any]) -> Table:
     t = Table(title=f"Fitted (objective {info['objective']:.4g})", box=box.SIMPLE)
-    for c in ("field", "bounds", "start", "fitted", "objective within +1 for"):
+    plus = f"{float(info.get('near_optimal_margin') or 1.0):.3g}"
+    for c in ("field", "bounds", "start", "fitted", f"objective within +{plus} for"):
         t.add_column(c, justify="left" if c == "field" else "right")
     for q in info["params"]:
         lo, hi = q["near_optimal"]
@@ -171,24 +196,30 @@ def calibrate_cmd(
         ),
     ] = None,
     replications: Annotated[
-        int, typer.Option("--replications", "-r", min=1, help="Common-random-number replications.")
+        int,
+        typer.Option(
+            "--replications", "-r", min=1, max=10_000, help="Common-random-number replications."
+        ),
     ] = 5,
     max_evals: Annotated[
-        int, typer.Option("--max-evals", min=1, help="Optimiser evaluations at most.")
+        int, typer.Option("--max-evals", min=1, max=100_000, help="Optimiser evaluations at most.")
     ] = 60,
     profile: Annotated[
-        int, typer.Option("--profile", min=0, help="Profile points per parameter (0: none).")
+        int,
+        typer.Option("--profile", min=0, max=1000, help="Profile points per parameter (0: none)."),
     ] = 7,
     pairs: Annotated[
         int,
         typer.Option(
             "--pairs",
             min=0,
+            max=100,
             help="Grid points per side of each pair of parameters' profile (0: none).",
         ),
     ] = 4,
     workers: Annotated[
-        int | None, typer.Option("--workers", "-w", help="Parallel runs. Default: CPU count.")
+        int | None,
+        typer.Option("--workers", "-w", min=1, max=1024, help="Parallel runs. Default: CPU count."),
     ] = None,
     sets: SetOpt = None,
     engine: Annotated[
@@ -206,18 +237,28 @@ def calibrate_cmd(
     no_report: Annotated[
         bool, typer.Option("--no-report", help="Do not write report.html.")
     ] = False,
+    force: Annotated[
+        bool, typer.Option("--force", help="Fit even above the work limits (twin.budget).")
+    ] = False,
 ) -> None:
     """Fit scenario fields so the twin reproduces measured points (a twin of your own line)."""
     problem, overrides = _problem(
         scenario, targets, fit or [], sets, policy, replications, max_evals, profile, pairs
     )
-    lock = _check_out(out)
-    try:
-        with _journal(out, fresh):
-            args = (scenario, overrides, no_report, json_out)
-            _calibrate(problem, out, workers, engine.value, *args)
-    finally:
-        lock.release()
+    _check_work(problem, force)
+    inputs = {
+        "scenario file": find_scenario(scenario),
+        "trace": trace_file(problem.scenario),
+        "targets file": targets,
+    }
+    with removed_if_refused(out):
+        lock = _check_out(out, inputs)
+        try:
+            with _journal(out, fresh):
+                args = (scenario, overrides, no_report, json_out)
+                _calibrate(problem, out, workers, engine.value, *args)
+        finally:
+            lock.release()
 
 
 def _calibrate(

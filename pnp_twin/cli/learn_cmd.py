@@ -26,6 +26,7 @@ from pnp_twin.cli.app import INTERRUPTED, ScenarioArg, SetOpt, app, fail
 from pnp_twin.cli.console import stdout_console
 from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.cli.train_progress import TrainProgress
+from pnp_twin.learning.envs.options import REWARD_WEIGHTS
 from pnp_twin.learning.train_args import TrainArgs, field_help
 from pnp_twin.parallel import BACKENDS, pool_map_ordered, ray_map
 from pnp_twin.twin.loader import load_scenario, parse_sets
@@ -97,7 +98,7 @@ _EXTRA: list[tuple[str, Any, Any]] = [
                 "--reward-weights", help="Weights of eq. 1 and eq. 2, 'EXTRINSIC,INTRINSIC'."
             ),
         ],
-        "1,1",
+        ",".join(f"{w:g}" for w in REWARD_WEIGHTS),
     ),
     (
         "resume",
@@ -348,7 +349,11 @@ _register_train()
 def evaluate_cmd(
     scenario: ScenarioArg,
     policy: Annotated[
-        str, typer.Option("--policy", help="The trained policy: hdqn:DIR or sb3:MODEL.zip.")
+        str,
+        typer.Option(
+            "--policy",
+            help="The policy to place: hdqn:DIR, sb3:MODEL.zip or lookahead[:K=16,H=1].",
+        ),
     ],
     seeds: Annotated[int, typer.Option("--seeds", min=2, help="Held-out seeds 0..N-1.")] = 20,
     first_seed: Annotated[int, typer.Option("--first-seed", min=0, help="First seed.")] = 0,
@@ -382,8 +387,13 @@ def evaluate_cmd(
     from pnp_twin.policies.registry import make_policy
 
     prefix, sep, target = policy.partition(":")
-    if not sep or prefix.lower() not in ("hdqn", "sb3") or not target:
-        fail(f"--policy: '{policy}' is not a trained policy; give hdqn:DIR or sb3:MODEL.zip")
+    if policy.strip().lower() == "lookahead":  # the lookahead controller with its defaults
+        prefix, sep, target = "lookahead", ":", "defaults"
+    if not sep or prefix.lower() not in ("hdqn", "sb3", "lookahead") or not target:
+        fail(
+            f"--policy: '{policy}' is not a trained policy; give hdqn:DIR, sb3:MODEL.zip or "
+            "lookahead[:K=16,H=1]"
+        )
     reference = target if prefix.lower() == "hdqn" else policy
     line = load_scenario(scenario, parse_sets(sets or []))
     if mix is not None:

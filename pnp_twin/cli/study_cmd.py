@@ -40,14 +40,24 @@ from pnp_twin.cli.app import SetOpt, app
 from pnp_twin.cli.console import note, stderr_console, stdout_console
 from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.studies import Options, build_plan, run_sweep
+from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.folder import Tables
+from pnp_twin.studies.journal import DEFINITION
 from pnp_twin.studies.plan import AUTO
-from pnp_twin.studies.rulemix import DEFAULT_BUDGET, run_mix
-from pnp_twin.studies.sizing import COUNT, MTBF, run_size
+from pnp_twin.studies.rulemix import DEFAULT_BUDGET, check_mix, run_mix
+from pnp_twin.studies.sizing import COUNT, MTBF, check_size, run_size
 from pnp_twin.twin.budget import check_study
-from pnp_twin.twin.errors import UserError
-from pnp_twin.twin.loader import ScenarioError, load_scenario, parse_sets, with_overrides
+from pnp_twin.twin.errors import UserError, excerpt
+from pnp_twin.twin.loader import (
+    ScenarioError,
+    find_scenario,
+    load_scenario,
+    parse_sets,
+    with_overrides,
+)
+from pnp_twin.twin.output import check_out_folder, removed_if_refused
 from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.trace import trace_file
 
 log = logging.getLogger(__name__)
 
@@ -287,10 +297,15 @@ def _precision_line(out: Path) -> str | None:
     )
 
 
-def _check_out(out: Path) -> None:
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: is a file; give a folder")
-    out.mkdir(parents=True, exist_ok=True)
+OURS = (".study.lock", ".study.lock.json", DEFINITION, "meta.json", "runs", EVALS)
+"""Entries that make a folder one of our studies (or calibrations), to resume."""
+
+
+def _check_out(out: Path, scenario: str, sc: Scenario) -> None:
+    """The study folder, checked but not created (the study's lock creates it): not a file,
+    not a folder of other files, not a folder holding the scenario or its trace."""
+    inputs = {"scenario file": find_scenario(scenario), "trace": trace_file(sc)}
+    check_out_folder(out, inputs, OURS)
 
 
 def _report(out: Path, skip: bool) -> None:
@@ -361,8 +376,8 @@ def sweep(
     sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
     _check_work(sc, reps, _policy_count(sc, policy), force)
     plan = build_plan(sc, policies=policy, replications=reps)
-    _check_out(out)
-    with progress_bar("sweep") as update:
+    _check_out(out, scenario, sc)
+    with removed_if_refused(out), progress_bar("sweep") as update:
         opts = _options(workers, backend, address, fresh, update, engine=engine)
         tables = run_sweep(plan, out, opts)
     stdout_console().print(_sweep_table(tables, list(plan.grid)))
@@ -406,15 +421,17 @@ def size(
     grid = sc.sweep.grid if sc.sweep else {}
     counts = 1 if COUNT in grid else max(8, 2 * sc.robots.count)  # what run_size adds
     _check_work(sc, reps, _policy_count(sc, policy), force, counts * (1 if MTBF in grid else 2))
-    _check_out(out)
+    target = check_size(sc, target, confidence, policy, reps, layout)
+    _check_out(out, scenario, sc)
     opts = _options(workers, backend, address, fresh, None, confidence, engine)
-    with progress_bar("size") as update:
+    with removed_if_refused(out), progress_bar("size") as update:
         opts.progress = update
         tables, sizing = run_size(sc, out, target, opts, policy, reps, layout)
     rows = pd.DataFrame(sizing["rows"])
     rows = rows[rows[MTBF] == 0] if MTBF in rows else rows
     t = Table(
-        title=f"Gripping rate % by robot count ({100 * confidence:g} % CI, best policy)",
+        title=f"Gripping rate % by robot count ({100 * confidence:g} % CI of the rule picked "
+        "at each count)",
         box=box.SIMPLE,
     )
     others = [c for c in rows.columns if "." in c and c not in (COUNT, MTBF)]
@@ -437,6 +454,23 @@ def size(
     if line:
         note(line)
     _report(out, no_report)
+
+
+def _rule_list(rules: str | None) -> list[str] | None:
+    """``--rules``: None when left out; else the names between commas, none of them empty."""
+    if rules is None:
+        return None
+    names = [r.strip() for r in rules.split(",")]
+    if not any(names):
+        raise UserError(
+            f"--rules: {excerpt(rules)} names no rule; give rules separated by commas, e.g. "
+            "--rules SPT,SD,FIFO, or leave --rules out for sweep.policies"
+        )
+    if not all(names):
+        raise UserError(
+            f"--rules: {excerpt(rules)} has an empty name between commas; give e.g. SPT,SD,FIFO"
+        )
+    return names
 
 
 @app.command("mix")
@@ -468,11 +502,14 @@ def mix(
             "--replications: auto is not for mix (every mix is scored on the same fixed "
             "replications); give a number, e.g. -r 5"
         )
+    if budget < 1:
+        raise UserError(f"--budget: {budget} is not allowed; give 1 or more mixes")
     _check_work(sc, reps, budget, force, grid={})  # a mix search sweeps no grid
-    _check_out(out)
-    names = [r for r in (rules or "").split(",") if r.strip()] or None
+    names = _rule_list(rules)
+    check_mix(sc, names, reps if isinstance(reps, int) else None, budget)
+    _check_out(out, scenario, sc)
     opts = _options(workers, backend, address, fresh, None, engine=engine)
-    with progress_bar("mix") as update:
+    with removed_if_refused(out), progress_bar("mix") as update:
         opts.progress = update
         _, result = run_mix(sc, out, opts, names, reps if isinstance(reps, int) else None, budget)
     t = Table(

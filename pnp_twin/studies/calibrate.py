@@ -29,11 +29,12 @@ import numpy as np
 from pnp_twin.policies import RULES, make_policy
 from pnp_twin.studies.calibrate_eval import Evaluator, PointPrediction
 from pnp_twin.studies.calibrate_fields import FieldRef, FitParam, apply_values, current_value
-from pnp_twin.studies.calibrate_targets import Targets
+from pnp_twin.studies.calibrate_targets import Targets, robot_of
 from pnp_twin.studies.plan import StudyError
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.stats import t_quantile
 
 log = logging.getLogger(__name__)
 
@@ -130,6 +131,14 @@ def check_problem(problem: Problem) -> None:
                 sc = apply_values(problem.scenario, {**t.point(i), **problem.values(x)})
             except StudyError as e:
                 raise StudyError(f"target point {label(t, i)}: {e}") from None
+            for kpi in t.kpis:
+                robot = robot_of(kpi)
+                if robot is not None and robot > sc.robots.count:
+                    raise StudyError(
+                        f"--targets {t.source}: column {kpi} names robot {robot}, but the line "
+                        f"at point {label(t, i)} has {sc.robots.count} robots; allowed "
+                        f"r1_..r{sc.robots.count}_"
+                    )
             for name in problem.policies:
                 try:
                     make_policy(name, sc.robots.count)
@@ -358,6 +367,42 @@ def calibrate(
             **({"lower": (fit.lower.x, fit.lower.objective)} if fit.lower is not None else {}),
         },
     )
+
+
+CHI2_1_95 = 3.841458820694124  # the 95 % quantile of chi-square with 1 degree of freedom
+
+
+def noise_margin(problem: Problem, best: Evaluation) -> dict[str, float]:
+    """How far above its minimum the objective may rise before a parameter value is ruled
+    out at 95 %: chi-square(1) x the variance of one (weighted, scaled) residual, the larger
+    of what the residuals left at the fit say (their sum over the cells beyond the fitted
+    parameters) and what the seeds say (twice the squared standard error of each predicted
+    mean, as measured values carry the same run-to-run noise). An objective that is only
+    required to stay within +1 excludes the truth of a line it fits almost exactly."""
+    t = problem.targets
+    scale = t.scale()
+    cells = ~np.isnan(t.target)
+    m = int(cells.sum())
+    dof = m - len(problem.params)
+    residual = best.objective / dof if dof > 0 else 0.0
+    seeds = []
+    n = problem.replications
+    if n >= 2:
+        tq = t_quantile(0.975, n - 1)
+        for i, pred in enumerate(best.predictions):
+            for j, k in enumerate(t.kpis):
+                lo, hi = pred.ci_low.get(k, math.nan), pred.ci_high.get(k, math.nan)
+                if not cells[i, j] or not (math.isfinite(lo) and math.isfinite(hi)):
+                    continue
+                se = (hi - lo) / (2.0 * tq)
+                seeds.append(float(t.weight[i]) * 2.0 * (se / scale[j]) ** 2)
+    seed_var = float(np.mean(seeds)) if seeds else 0.0
+    variance = max(residual, seed_var)
+    return {
+        "margin": CHI2_1_95 * variance if variance > 0 else 1.0,
+        "residual_variance": residual,
+        "seed_variance": seed_var,
+    }
 
 
 def near_optimal(

@@ -118,6 +118,13 @@ class Evaluator:
         self, scenarios: Sequence[Scenario], labels: Sequence[str]
     ) -> list[PointPrediction]:
         """The prediction at each scenario; journalled ones are read back, not simulated."""
+        return [_summarise(r, self.kpis) for r in self.runs(scenarios, labels)]
+
+    def runs(
+        self, scenarios: Sequence[Scenario], labels: Sequence[str]
+    ) -> list[dict[str, list[dict[str, float]]]]:
+        """Each scenario's runs ({policy: one row of KPIs per replication}), read back from
+        the journal where it holds them, else simulated and journalled."""
         keys = [_key(s, self.policies, self.seeds, self.kpis) for s in scenarios]
         runs: dict[int, dict[str, list[dict[str, float]]]] = {}
         todo = []
@@ -135,7 +142,7 @@ class Evaluator:
                 record = {"label": labels[i], "policies": list(self.policies), "runs": result}
                 write_text(json.dumps(record) + "\n", self.folder / f"{keys[i]}.json")
                 self.simulated += 1
-        return [_summarise(runs[i], self.kpis) for i in range(len(scenarios))]
+        return [runs[i] for i in range(len(scenarios))]
 
     def _simulate(
         self, scenarios: Sequence[Scenario], labels: Sequence[str]

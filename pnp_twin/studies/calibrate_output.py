@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pnp_twin.studies.calibrate import Calibration, label, near_optimal
+from pnp_twin.studies.calibrate import Calibration, label, near_optimal, noise_margin
 from pnp_twin.studies.calibrate_fields import raw_with_values
 from pnp_twin.twin.loader import apply_overrides, find_scenario, read_mapping
 from pnp_twin.twin.output import dumps_toml, write_json, write_table, write_text
@@ -98,9 +98,12 @@ def summary(cal: Calibration, command: str, scenario_file: Path) -> dict[str, An
     p = cal.problem
     start = p.start()
     params = []
+    noise = noise_margin(p, cal.best)
     for j, prm in enumerate(p.params):
         lo, hi = (
-            near_optimal(cal.profiles[j], cal.best.objective) if cal.profiles[j] else (None, None)
+            near_optimal(cal.profiles[j], cal.best.objective, noise["margin"])
+            if cal.profiles[j]
+            else (None, None)
         )
         params.append(
             {
@@ -117,6 +120,8 @@ def summary(cal: Calibration, command: str, scenario_file: Path) -> dict[str, An
         "fitted": cal.fitted,
         "params": params,
         "objective": cal.best.objective,
+        "near_optimal_margin": noise["margin"],
+        "noise": noise,
         "points": points_rows(cal),
         "kpis": list(p.targets.kpis),
         "varied": [r.path for r in p.targets.varied],

@@ -10,6 +10,7 @@ time share are percentages (the folder stores the shares as fractions; they are 
 
 from __future__ import annotations
 
+import json
 import logging
 import re
 from pathlib import Path
@@ -35,7 +36,9 @@ UNITS: list[tuple[str, str, float]] = [
     (r"r\d+_(throughput|capacity|nominal_capacity)", "parts/s", 1.0),
     (r"(r\d+_)?cycle_time_\w+", "s", 1.0),
     (r"wall_time", "s", 1.0),
-    (r"parts_\w+|r\d+_(picks|passed_on|lost)|rule_\w+", "parts", 1.0),
+    (r"rule_NooP", "decisions", 1.0),  # NooP decisions taken, not parts
+    (r"rule_\w+", "picks", 1.0),  # picks decided by that rule
+    (r"parts_\w+|r\d+_(picks|passed_on|lost)", "parts", 1.0),
     (r"diff(_mean|_ci_low|_ci_high)", "points of G", 1.0),
 ]
 
@@ -73,6 +76,39 @@ def with_units(frame: pd.DataFrame) -> pd.DataFrame:
     return out.rename(columns=names)
 
 
+SERIES = "welch_gripping_rate"  # JSON text of a list per run: its own sheet, long format
+TEXT_COLUMNS = ("seed", "master_seed")  # 16-digit integers Excel would round: kept as text
+
+
+def for_excel(frame: pd.DataFrame, meta: dict[str, Any]) -> pd.DataFrame:
+    """``frame`` as a sheet: no list column, seeds as text (Excel keeps 15 digits), and the
+    MTTR beside a swept MTBF when the study held it fixed (a sizing study's breakdowns)."""
+    out = frame.drop(columns=[SERIES], errors="ignore").copy()
+    for col in TEXT_COLUMNS:
+        if col in out.columns:
+            out[col] = [str(v) if pd.notna(v) else "" for v in out[col]]
+    mttr = ((meta.get("scenario") or {}).get("robots") or {}).get("mttr")
+    if "robots.mtbf" in out.columns and "robots.mttr" not in out.columns and mttr is not None:
+        where = list(out.columns).index("robots.mtbf") + 1
+        out.insert(where, "robots.mttr", [float(mttr) if m else 0.0 for m in out["robots.mtbf"]])
+    return out
+
+
+def series_sheet(results: pd.DataFrame) -> pd.DataFrame | None:
+    """The per-run Welch series (G per 1/60 of the feeding period) as rows run_id, bin, G."""
+    if SERIES not in results.columns or "run_id" not in results.columns:
+        return None
+    rows = []
+    for run, text in zip(results["run_id"], results[SERIES], strict=True):
+        try:
+            values = json.loads(text) if isinstance(text, str) else []
+        except ValueError:
+            continue
+        for i, g in enumerate(values, start=1):
+            rows.append({"run_id": run, "bin": i, "gripping_rate": g})
+    return pd.DataFrame(rows) if rows else None
+
+
 def read_sheet(folder: Path, stem: str) -> pd.DataFrame | None:
     """``stem``.parquet, else ``stem``.csv of ``folder``; None when neither exists."""
     for suffix, reader in ((".parquet", pd.read_parquet), (".csv", pd.read_csv)):
@@ -96,9 +132,19 @@ def export_xlsx(folder: Path | str, out: Path | str) -> dict[str, Any]:
     tables = {s: t for s in SHEETS if (t := read_sheet(folder, s)) is not None}
     if "summary" not in tables:
         raise StudyError(f"{folder}: summary.csv is missing; finish the study first")
+    try:
+        meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        meta = {}
+    meta = meta if isinstance(meta, dict) else {}
+    series = series_sheet(tables["results"]) if "results" in tables else None
     with atomic_path(out) as tmp, pd.ExcelWriter(tmp, engine="openpyxl") as xl:
         for name, table in tables.items():
-            with_units(table).to_excel(xl, sheet_name=name, index=False)
+            with_units(for_excel(table, meta)).to_excel(xl, sheet_name=name, index=False)
             xl.sheets[name].freeze_panes = "A2"
+        if series is not None:
+            with_units(series).to_excel(xl, sheet_name="welch", index=False)
+            xl.sheets["welch"].freeze_panes = "A2"
+            tables = {**tables, "welch": series}
     log.info("exported %s to %s", folder, out)
     return {name: len(t) for name, t in tables.items()}

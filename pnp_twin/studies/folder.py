@@ -24,6 +24,8 @@ from pnp_twin.studies.summary import (
     summarise,
 )
 from pnp_twin.twin.output import versions, write_json, write_table
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.trace import check_replay, gap_stats
 
 PACKAGES = ("pnp-twin", "simpy", "numpy", "pandas", "plotly")  # what a result depends on
 
@@ -124,5 +126,18 @@ def meta(plan: StudyPlan, kind: str, **extra: Any) -> dict[str, Any]:
         "versions": versions(*PACKAGES),
         "id_columns": list(ID_COLUMNS),
         "argv": sys.argv,
+        **trace_info(plan.scenario),
         **extra,
+    }
+
+
+def trace_info(scenario: Scenario) -> dict[str, Any]:
+    """``{"trace": {file, parts, mean_rate, cv}}`` for a scenario that replays a trace (the
+    rate the report states: a trace ignores ``feeder.rate``), else {}."""
+    trace = check_replay(scenario)
+    if trace is None:
+        return {}
+    rate, cv = gap_stats(trace)
+    return {
+        "trace": {"file": trace.path.name, "parts": len(trace.times), "mean_rate": rate, "cv": cv}
     }

@@ -217,7 +217,7 @@ def finish(
     folder = session.journal.folder
     tables = build_tables(rows, list(plan.grid), session.options.confidence)
     write_tables(folder, tables)
-    write_records(folder, representative(plan, tables.best))
+    write_records(folder, replace(representative(plan, tables.best), engine=session.options.engine))
     extra = {**session.meta_extra(), **(extra_meta or {})}
     write_json(meta(plan, kind, **extra), folder / "meta.json", keep_nan=True)
     session.journal.started()

@@ -37,6 +37,7 @@ from pnp_twin.studies.runner import Options, finish, open_session, run_plan
 from pnp_twin.twin.loader import ScenarioError, with_overrides
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.stats import t_interval
 
 COUNT = "robots.count"
 MTBF = "robots.mtbf"
@@ -161,15 +162,58 @@ def smallest_count(rows: pd.DataFrame) -> int | None:
     return int(hit[COUNT].min()) if len(hit) else None
 
 
-def point_rows(summary: pd.DataFrame, grid: Sequence[str], target: float) -> pd.DataFrame:
-    """Per grid point, the best policy's mean G, CI and whether it reached the target."""
+def selected_confidence(confidence: float, rules: int) -> float:
+    """The confidence of each rule's interval so that all ``rules`` intervals hold together
+    with ``confidence`` (Bonferroni): what keeps the promise after picking the best rule."""
+    return 1.0 - (1.0 - confidence) / max(1, rules)
+
+
+def point_rows(
+    summary: pd.DataFrame,
+    grid: Sequence[str],
+    target: float,
+    results: pd.DataFrame | None = None,
+    confidence: float = 0.95,
+) -> pd.DataFrame:
+    """Per grid point, the rule to run there, its mean G and CI, and whether it reached the
+    target. With several rules the best one is picked after seeing the data, so its own
+    interval would be optimistic: each rule's interval is taken at the Bonferroni level
+    :func:`selected_confidence` (computed from ``results``), the rule with the highest such
+    lower bound is the one to run, and the point reaches the target when that bound does."""
     best = summary.loc[summary.groupby("point")["gripping_rate_mean"].idxmax()]
-    out = best[["point", *grid, "policy"]].copy()
-    out["gripping_rate_mean"] = best["gripping_rate_mean"]
-    out["ci_low"] = best["gripping_rate_ci_low"]
-    out["ci_high"] = best["gripping_rate_ci_high"]
-    out["reached"] = (best["gripping_rate_ci_low"] >= target).to_numpy()
-    return out.reset_index(drop=True)
+    if results is None or results.empty:
+        out = best[["point", *grid, "policy"]].copy()
+        out["gripping_rate_mean"] = best["gripping_rate_mean"]
+        out["ci_low"] = best["gripping_rate_ci_low"]
+        out["ci_high"] = best["gripping_rate_ci_high"]
+        out["reached"] = (best["gripping_rate_ci_low"] >= target).to_numpy()
+        return out.reset_index(drop=True)
+    rows = []
+    for point, at in results.groupby("point", sort=True):
+        rules = list(dict.fromkeys(at["policy"]))
+        level = selected_confidence(confidence, len(rules))
+        scored = []
+        for rule in rules:
+            mean, low, high = t_interval(at.loc[at["policy"] == rule, "gripping_rate"], level)
+            low, high = max(low, 0.0), min(high, 100.0)  # G cannot leave [0, 100]
+            key = (low if math.isfinite(low) else -math.inf, mean)
+            scored.append((key, rule, mean, low, high))
+        _, rule, mean, low, high = max(scored, key=lambda t: t[0])
+        first = at.iloc[0]
+        rows.append(
+            {
+                "point": int(point),
+                **{c: first[c] for c in grid},
+                "policy": rule,
+                "gripping_rate_mean": mean,
+                "ci_low": low,
+                "ci_high": high,
+                "reached": bool(math.isfinite(low) and low >= target),
+                "rules": len(rules),
+                "confidence_each": level,
+            }
+        )
+    return pd.DataFrame(rows)
 
 
 def _robust_answer(rows: pd.DataFrame, conditions: list[dict[str, Any]]) -> int | None:
@@ -223,6 +267,7 @@ def _g(row: pd.Series | None) -> dict[str, Any] | None:
         "ci_low": float(row["ci_low"]),
         "ci_high": float(row["ci_high"]),
         "reached": bool(row["reached"]),
+        "policy": str(row["policy"]),
     }
 
 
@@ -235,7 +280,8 @@ def analyse(
     confidence: float,
 ) -> dict[str, Any]:
     """The sizing.json mapping of a finished sizing study."""
-    rows = point_rows(summary, grid, target)
+    rows = point_rows(summary, grid, target, results, confidence)
+    rules = int(results["policy"].nunique()) if len(results) else 1
     mtbf_values = sorted(rows[MTBF].unique()) if MTBF in grid else [0.0]
     others = [p for p in grid if p not in (COUNT, MTBF)]
     plain = rows[rows[MTBF] == 0] if MTBF in grid else rows
@@ -262,6 +308,19 @@ def analyse(
         "parameter": COUNT,
         "rows": _records(rows),
         "answer": answer,
+        "rule": None if answer_row is None else str(answer_row["policy"]),
+        "selection": {
+            "rules": rules,
+            "method": "bonferroni" if rules > 1 else "none",
+            "confidence_each": selected_confidence(confidence, rules),
+            "text": (
+                f"The best of {rules} rules is picked at each count, so each rule's interval "
+                f"is taken at {100 * selected_confidence(confidence, rules):.4g} % (Bonferroni)"
+                f" for the pick to hold with {100 * confidence:g} % confidence."
+                if rules > 1
+                else ""
+            ),
+        },
         "by_condition": by_condition,
         "limits": _limits(plain, others),
         "rule_of_thumb": {
@@ -316,8 +375,9 @@ def describe(s: dict[str, Any], at_answer: dict[str, Any] | None, base: dict[str
         first = f"No robot count in the study reaches {s['target']:g} % with {conf} confidence."
     else:
         lb = f" (lower bound {at_answer['ci_low']:.1f} %)" if at_answer else ""
+        rule = f" running {s['rule']}" if s.get("rule") else ""
         first = (
-            f"{s['answer']} robots reach a {s['target']:g} % gripping rate with {conf} "
+            f"{s['answer']} robots{rule} reach a {s['target']:g} % gripping rate with {conf} "
             f"confidence{where}{lb}."
         )
     r = s["rule_of_thumb"]
@@ -347,6 +407,31 @@ def describe(s: dict[str, Any], at_answer: dict[str, Any] | None, base: dict[str
     return first + rot + fail + down
 
 
+def check_size(
+    scenario: Scenario,
+    target: float | None,
+    confidence: float,
+    policies: Sequence[str] | None = None,
+    replications: int | None = None,
+    layout: str = "extend",
+) -> float:
+    """The target of a sizing study of ``scenario``, every setting checked (target,
+    confidence, layout, every robot count's line and policy), before its folder is touched."""
+    sweep = scenario.sweep
+    target = target if target is not None else (sweep.target if sweep else None)
+    if target is None:
+        raise StudyError("--target: no target gripping rate; give --target 99 or sweep.target")
+    if not 0 < target <= 100:
+        raise StudyError(f"--target: {target:g} is not allowed; give a percentage in (0, 100]")
+    if not 0 < confidence < 1:
+        raise StudyError(f"--confidence: {confidence:g} is not allowed; give 0 < c < 1")
+    line, grid = sizing_setup(scenario, sweep.grid if sweep else {}, layout)
+    plan = build_plan(line, grid=grid, policies=policies, replications=replications)
+    if layout == "share":
+        share_layout(plan, scenario)
+    return float(target)
+
+
 def run_size(
     scenario: Scenario,
     out: Path,
@@ -369,16 +454,18 @@ def run_size(
     plan = build_plan(line, grid=grid, policies=policies, replications=replications)
     if layout == "share":
         plan = share_layout(plan, scenario)
-    extra = {"target": target, "confidence": options.confidence, "layout": layout}
-    session = open_session(out, plan, "size", options, extra)
+    # study.json keeps what is simulated (the layout) apart from how the runs are read (the
+    # target and confidence): another --target or --confidence reuses every stored run
+    analysis = {"target": target, "confidence": options.confidence}
+    session = open_session(out, plan, "size", options, {"layout": layout, "analysis": analysis})
     plan, rows = run_plan(session, plan)
-    tables = finish(session, plan, "size", rows, extra)
+    tables = finish(session, plan, "size", rows, {"layout": layout, **analysis})
     sizing = analyse(
         tables.results, tables.summary, list(plan.grid), plan.scenario, target, options.confidence
     )
     sizing["layout"] = layout_summary(plan, layout)
     sizing["layout"]["text"] = layout_text(sizing["layout"], scenario)
     sizing["text"] = sizing["layout"]["text"] + " " + sizing["text"]
-    write_records(out, showcase_spec(plan, sizing))
+    write_records(out, replace(showcase_spec(plan, sizing), engine=options.engine))
     write_json(sizing, out / "sizing.json", keep_nan=True)
     return tables, sizing

@@ -1,11 +1,11 @@
 """The report in a real headless Chromium (Debian's /usr/bin/chromium), network blocked:
 no console or page errors, every figure div rendered an SVG, the belt animation plays when
 its Play button is clicked, and a printed PDF (what a browser's Save as PDF makes) keeps
-every table row. CI installs chromium and poppler-utils (pdftotext) for these tests."""
+every table row. CI installs chromium and poppler-utils (pdftotext) for these tests; there
+(strict mode, see tests/conftest.py) a missing one fails the tests instead of skipping them."""
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
 import subprocess
@@ -22,9 +22,7 @@ SCREENSHOT = Path("/tmp/report_screenshot.png")
 PDFTOTEXT = shutil.which("pdftotext")
 
 if not CHROMIUM.exists():
-    if os.environ.get("CI"):
-        pytest.fail(f"{CHROMIUM} is missing; CI must install it (apt-get install chromium)")
-    pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
+    pytest.skip(f"{CHROMIUM} is not installed (apt-get install chromium)", allow_module_level=True)
 
 sync_api = pytest.importorskip("playwright.sync_api")
 
@@ -108,7 +106,7 @@ def test_sizing_report_without_records_renders(size_dir: Path, tmp_path: Path) -
     # + warm-up; no timeline or belt without records
     assert seen["declared"] == seen["divs"] == seen["rendered"] == 8
     html = report.read_text(encoding="utf-8")
-    assert re.search(r"\d robots reach G ≥ 90 %|No robot count tried reaches", html)
+    assert re.search(r"\d robots running \S+ reach G ≥ 90 %|No robot count tried reaches", html)
     shutil.copyfile(shot, SCREENSHOT.with_name("report_screenshot_size.png"))
 
 

@@ -29,7 +29,8 @@ def test_every_table_is_a_sheet_with_units_and_percentages(study: Path, tmp_path
     out = tmp_path / "study.xlsx"
     result = CliRunner().invoke(app, ["export", str(study), "--xlsx", str(out)])
     assert result.exit_code == 0, result.stderr
-    assert openpyxl.load_workbook(out).sheetnames == ["results", "summary", "paired", "best"]
+    sheets = ["results", "summary", "paired", "best", "welch"]  # welch: the per-run series
+    assert openpyxl.load_workbook(out).sheetnames == sheets
     summary = pd.read_csv(study / "summary.csv")
     s = sheet(out, "summary")
     assert len(s) == len(summary)

@@ -118,7 +118,7 @@ def test_sizing_answer_is_the_smallest_count_with_lower_bound_over_target():
     assert s["rule_of_thumb"]["n_min"] == pytest.approx(10.0)
     assert s["rule_of_thumb"]["n_recommended"] == 12
     assert s["breakdown"]["n_minus_1"]["robots"] == 3
-    assert s["text"].startswith("4 robots reach a 99 % gripping rate")
+    assert s["text"].startswith("4 robots running SD reach a 99 % gripping rate")
 
 
 def test_sizing_setup_adds_counts_failures_and_belt():

@@ -1,0 +1,89 @@
+"""The ``capacity`` command of ``pnp-twin``: the highest part flow a line sustains at a
+target gripping rate (``pnp_twin.studies.capacity``), with its interval, by root finding
+over common random numbers. It prints the answer (or one JSON object with ``--json``:
+``max_rate``, ``ci_low``, ``ci_high``, ...) and writes ``capacity.json`` and ``report.html``
+into ``--out``. Asking again with another ``--target`` or ``--confidence`` replays the flows
+already simulated (``DIR/evals/``) and simulates only the new ones.
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.cli.console import note
+from pnp_twin.cli.run_cmd import Engine
+from pnp_twin.studies.calibrate_eval import EVALS
+from pnp_twin.studies.capacity import SUMMARY_FILE, run_capacity
+from pnp_twin.studies.lock import StudyLock
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
+from pnp_twin.twin.output import check_out_folder, dumps_json
+
+OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE, "report.html")
+
+
+@app.command("capacity")
+def capacity_cmd(
+    scenario: ScenarioArg,
+    target: Annotated[float, typer.Option("--target", help="Target gripping rate in %.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder (rerun to reuse).")],
+    confidence: Annotated[float, typer.Option("--confidence", help="Confidence level.")] = 0.95,
+    policy: Annotated[
+        list[str] | None,
+        typer.Option("--policy", "-p", help="Rule to run (repeatable: the best is picked)."),
+    ] = None,
+    replications: Annotated[
+        int, typer.Option("--replications", "-r", help="Replications per flow.")
+    ] = 5,
+    start: Annotated[
+        float | None, typer.Option("--start", help="First flow tried, parts/s (feeder.rate).")
+    ] = None,
+    sets: SetOpt = None,
+    workers: Annotated[int | None, typer.Option("--workers", "-w", min=1, max=1024)] = None,
+    engine: Annotated[Engine, typer.Option("--engine", help="auto, fast or simpy.")] = Engine.auto,
+    no_report: Annotated[bool, typer.Option("--no-report", help="No report.html.")] = False,
+    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """The highest part flow the line sustains at a target gripping rate, with its interval."""
+    sc = load_scenario(scenario, parse_sets(sets or []))
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: is a file; give a folder")
+    check_out_folder(out, {"scenario file": find_scenario(scenario)}, OURS)
+    command = shlex.join(["pnp-twin", *sys.argv[1:]])
+    lock = StudyLock(out)
+    lock.acquire(command)
+    try:
+        result = run_capacity(
+            sc,
+            out,
+            target,
+            confidence,
+            policy,
+            replications,
+            workers or (os.cpu_count() or 1),
+            engine.value,
+            start,
+            command,
+        )
+    finally:
+        lock.release()
+    if not no_report:
+        from pnp_twin.reports.capacity import build_capacity_report
+
+        note(f"report: {build_capacity_report(out)}")
+    if json_out:
+        keep = ("scenario", "curve", "seeds")
+        typer.echo(dumps_json({k: v for k, v in result.items() if k not in keep}, indent=2))
+        return
+    typer.echo(result["text"])
+    note(
+        f"{result['evaluated']} flows evaluated ({result['simulated']} simulated, "
+        f"{result['replayed']} replayed from {out / EVALS})"
+    )

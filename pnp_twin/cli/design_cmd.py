@@ -1,0 +1,100 @@
+"""The ``design`` command of ``pnp-twin``: the cheapest configuration whose gripping rate
+meets a target with a confidence that holds after the selection
+(``pnp_twin.studies.design``). It prints the answer (or one JSON object with ``--json``:
+``choice``, ``gripping_rate``, ``ci_low``, ``total_cost``, ``alternatives``) and writes
+``design.json`` and ``report.html`` into ``--out``. Asking again with another target,
+confidence or cost file reuses every journalled run (``DIR/evals/``).
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.cli.console import note
+from pnp_twin.cli.run_cmd import Engine
+from pnp_twin.studies.calibrate_eval import EVALS
+from pnp_twin.studies.design import SUMMARY_FILE, run_design
+from pnp_twin.studies.lock import StudyLock
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
+from pnp_twin.twin.output import check_out_folder, dumps_json
+
+OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE, "report.html")
+
+
+@app.command("design")
+def design_cmd(
+    scenario: ScenarioArg,
+    target: Annotated[float, typer.Option("--target", help="Target gripping rate in %.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder (rerun to reuse).")],
+    vary: Annotated[
+        list[str] | None,
+        typer.Option("--vary", help="PATH=LO:HI (whole numbers) or PATH=V1,V2,... (repeatable)."),
+    ] = None,
+    policy: Annotated[
+        list[str] | None, typer.Option("--policy", "-p", help="Rule to consider (repeatable).")
+    ] = None,
+    costs: Annotated[
+        Path | None,
+        typer.Option("--costs", help="Cost TOML: robot_price, belt_price, lost_part_cost, hours."),
+    ] = None,
+    confidence: Annotated[float, typer.Option("--confidence", help="Confidence level.")] = 0.95,
+    replications: Annotated[
+        int, typer.Option("--replications", "-r", help="First replications everywhere.")
+    ] = 3,
+    max_replications: Annotated[
+        int, typer.Option("--max-replications", help="Most replications where still open.")
+    ] = 24,
+    sets: SetOpt = None,
+    workers: Annotated[int | None, typer.Option("--workers", "-w", min=1, max=1024)] = None,
+    engine: Annotated[Engine, typer.Option("--engine", help="auto, fast or simpy.")] = Engine.auto,
+    no_report: Annotated[bool, typer.Option("--no-report", help="No report.html.")] = False,
+    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """The cheapest configuration meeting a target gripping rate with a confidence."""
+    sc = load_scenario(scenario, parse_sets(sets or []))
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: is a file; give a folder")
+    if not vary and not policy:
+        raise UserError("--vary: give at least one field to vary, e.g. --vary robots.count=3:8")
+    check_out_folder(out, {"scenario file": find_scenario(scenario), "costs": costs}, OURS)
+    command = shlex.join(["pnp-twin", *sys.argv[1:]])
+    lock = StudyLock(out)
+    lock.acquire(command)
+    try:
+        result = run_design(
+            sc,
+            out,
+            target,
+            vary or [],
+            policy,
+            costs,
+            confidence,
+            replications,
+            max_replications,
+            workers or (os.cpu_count() or 1),
+            engine.value,
+            command,
+        )
+    finally:
+        lock.release()
+    if not no_report:
+        from pnp_twin.reports.design import build_design_report
+
+        note(f"report: {build_design_report(out)}")
+    if json_out:
+        keep = ("scenario", "rows")
+        typer.echo(dumps_json({k: v for k, v in result.items() if k not in keep}, indent=2))
+        return
+    typer.echo(result["text"])
+    note(
+        f"{result['runs']} runs of the {result['runs_fixed']} a fixed {max_replications} "
+        f"replications would take ({result['simulated']} simulated now)"
+    )

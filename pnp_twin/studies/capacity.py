@@ -1,0 +1,221 @@
+"""Capacity: the highest part flow a line sustains at a target gripping rate.
+
+G falls as the part flow rises. With common random numbers (replication k sees the same
+seed at every flow) the mean G, and its lower and upper confidence bounds, are smooth
+decreasing functions of the flow, so each crossing of the target is found by root finding
+(a bracket grown by doubling or halving from the scenario's own flow, then bisection to a
+relative tolerance), not a grid:
+
+* ``max_rate``: the highest flow whose mean G reaches the target;
+* ``ci_low``: the highest flow whose lower confidence bound does (what can be promised);
+* ``ci_high``: the highest flow whose upper bound does (beyond it the line surely misses).
+
+With several rules, the best is picked at each flow, so each rule's interval is taken at
+the Bonferroni level (``sizing.selected_confidence``) and the flow is judged by the best
+rule's bounds. Every evaluated flow is journalled in ``DIR/evals/`` (as calibrate does, keyed
+by the scenario, rules and seeds), so asking again with another target or confidence
+replays the flows it needs and simulates only new ones. ``DIR/capacity.json`` holds the
+answer and the curve of G against flow (every evaluated flow).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from pnp_twin.studies.calibrate_eval import Evaluator
+from pnp_twin.studies.plan import StudyError
+from pnp_twin.studies.seeds import replication_seeds
+from pnp_twin.studies.sizing import selected_confidence
+from pnp_twin.twin.loader import ScenarioError, with_overrides
+from pnp_twin.twin.output import write_json
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.stats import t_interval
+
+SUMMARY_FILE = "capacity.json"
+TOLERANCE = 0.01  # relative width of the final bracket
+MAX_STEPS = 8  # doublings or halvings while bracketing
+MAX_BISECTIONS = 12
+RATE_DIGITS = 4  # flows are rounded to 4 significant digits (reused across questions)
+CRITERIA = {"max_rate": "mean", "ci_low": "low", "ci_high": "high"}
+
+
+def _round(rate: float) -> float:
+    return float(f"{rate:.{RATE_DIGITS}g}")
+
+
+class Capacity:
+    """The flows evaluated so far, and the search for each crossing."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        evaluator: Evaluator,
+        target: float,
+        confidence: float,
+        progress: Callable[[int], None] | None = None,
+    ) -> None:
+        self.scenario = scenario
+        self.evaluator = evaluator
+        self.target = target
+        self.confidence = confidence
+        self.level = selected_confidence(confidence, len(evaluator.policies))
+        self.points: dict[float, dict[str, Any]] = {}
+        self.progress = progress
+
+    def at(self, rate: float) -> dict[str, Any]:
+        """The best rule's G (mean, bounds at the selection-safe level) at flow ``rate``."""
+        rate = _round(rate)
+        if rate in self.points:
+            return self.points[rate]
+        try:
+            sc = with_overrides(self.scenario, {"feeder.rate": rate})
+        except ScenarioError as e:
+            raise StudyError(f"capacity: flow {rate:g} parts/s: {e}") from None
+        runs = self.evaluator.runs([sc], [f"flow {rate:g}"])[0]
+        best: dict[str, Any] | None = None
+        for rule, rows in runs.items():
+            mean, low, high = t_interval([r["gripping_rate"] for r in rows], self.level)
+            low = max(low, 0.0) if math.isfinite(low) else mean
+            high = min(high, 100.0) if math.isfinite(high) else mean
+            if best is None or (low, mean) > (best["low"], best["mean"]):
+                best = {"rate": rate, "policy": rule, "mean": mean, "low": low, "high": high}
+        assert best is not None
+        self.points[rate] = best
+        if self.progress is not None:
+            self.progress(len(self.points))
+        return best
+
+    def ok(self, rate: float, key: str) -> bool:
+        return bool(self.at(rate)[key] >= self.target)
+
+    def crossing(self, key: str, start: float) -> tuple[float | None, str]:
+        """The highest flow whose ``key`` (mean, low or high) reaches the target, and how
+        the search ended ("found", "above": still met at the highest flow tried, "below":
+        not met at the lowest)."""
+        passing = [r for r in self.points if self.ok(r, key)]
+        failing = [r for r in self.points if not self.ok(r, key)]
+        lo = max(passing, default=None)
+        hi = min((r for r in failing if lo is None or r > lo), default=None)
+        if lo is None and hi is None:
+            if self.ok(start, key):
+                lo = start
+            else:
+                hi = start
+        steps = 0
+        while hi is None:  # grow until the target is missed
+            if steps >= MAX_STEPS:
+                return lo, "above"
+            assert lo is not None
+            r = _round(lo * 2)
+            steps += 1
+            if self.ok(r, key):
+                lo = r
+            else:
+                hi = r
+        while lo is None:  # shrink until the target is met
+            if steps >= MAX_STEPS:
+                return None, "below"
+            r = _round(hi / 2)
+            steps += 1
+            if self.ok(r, key):
+                lo = r
+            else:
+                hi = r
+        for _ in range(MAX_BISECTIONS):
+            if (hi - lo) <= TOLERANCE * lo:
+                break
+            mid = _round((lo + hi) / 2)
+            if mid in (lo, hi):
+                break
+            if self.ok(mid, key):
+                lo = mid
+            else:
+                hi = mid
+        return lo, "found"
+
+
+def run_capacity(
+    scenario: Scenario,
+    out: Path,
+    target: float,
+    confidence: float = 0.95,
+    policies: Sequence[str] | None = None,
+    replications: int = 5,
+    workers: int = 1,
+    engine: str = "auto",
+    start: float | None = None,
+    command: str = "",
+    progress: Callable[[int], None] | None = None,
+) -> dict[str, Any]:
+    """Find the line's capacity at ``target`` into ``out``; returns capacity.json's mapping."""
+    if not 0 < target <= 100:
+        raise StudyError(f"--target: {target:g} is not allowed; give a percentage in (0, 100]")
+    if not 0 < confidence < 1:
+        raise StudyError(f"--confidence: {confidence:g} is not allowed; give 0 < c < 1")
+    if replications < 2:
+        raise StudyError(f"--replications: {replications} is not allowed; give 2 or more")
+    if scenario.feeder.arrival == "trace":
+        raise StudyError(
+            "capacity: a replayed trace fixes the part flow; add --set feeder.arrival=poisson "
+            "(or normal) to search the flow at the trace's variability"
+        )
+    rules = list(policies or [scenario.policy])
+    t0 = time.perf_counter()
+    seeds = replication_seeds(scenario.seed, replications)
+    ev = Evaluator(out, rules, seeds, ["part_flow", "throughput"], workers, engine)
+    cap = Capacity(scenario, ev, target, confidence, progress)
+    first = _round(start if start is not None else scenario.feeder.rate)
+    found = {name: cap.crossing(key, first) for name, key in CRITERIA.items()}
+    rate, how = found["max_rate"]
+    curve = sorted(cap.points.values(), key=lambda p: p["rate"])
+    result: dict[str, Any] = {
+        "target": target,
+        "confidence": confidence,
+        "max_rate": rate,
+        "ci_low": found["ci_low"][0],
+        "ci_high": found["ci_high"][0],
+        "search": {k: v[1] for k, v in found.items()},
+        "policy": cap.at(rate)["policy"] if rate is not None else None,
+        "rules": rules,
+        "confidence_each": cap.level,
+        "replications": replications,
+        "seeds": seeds,
+        "tolerance": TOLERANCE,
+        "curve": curve,
+        "evaluated": len(curve),
+        "simulated": ev.simulated,
+        "replayed": ev.replayed,
+        "scenario": scenario.model_dump(mode="json"),
+        "scenario_name": scenario.name,
+        "robots": scenario.robots.count,
+        "duration": scenario.duration,
+        "warmup": scenario.warmup,
+        "engine": engine,
+        "command": command,
+        "wall_time": time.perf_counter() - t0,
+    }
+    result["text"] = capacity_text(result)
+    write_json(result, Path(out) / SUMMARY_FILE, keep_nan=True)
+    return result
+
+
+def capacity_text(c: dict[str, Any]) -> str:
+    """'With 6 robots you can promise 11.4 parts/s [11.1, 11.7] at 95 %' and how it ends."""
+    n, conf = c["robots"], f"{100 * c['confidence']:g} %"
+    goal = f"G ≥ {c['target']:g} %"
+    if c["max_rate"] is None:
+        return f"With {n} robots no flow tried reaches {goal}, even at the lowest."
+    lo, hi = c["ci_low"], c["ci_high"]
+    span = f" [{lo:.3g}, {hi:.3g}]" if lo is not None and hi is not None else ""
+    above = c["search"]["max_rate"] == "above"
+    more = " (or more: still met at the highest flow tried)" if above else ""
+    rule = f" running {c['policy']}" if c.get("policy") else ""
+    promise = f"; {lo:.3g} parts/s is met with {conf} confidence" if lo is not None else ""
+    return (
+        f"With {n} robots{rule} the line sustains {c['max_rate']:.3g} parts/s{span} at {goal}"
+        f"{more}{promise}."
+    )
