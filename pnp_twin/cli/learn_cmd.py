@@ -29,7 +29,8 @@ from pnp_twin.cli.train_progress import TrainProgress
 from pnp_twin.learning.envs.options import REWARD_WEIGHTS
 from pnp_twin.learning.train_args import TrainArgs, field_help
 from pnp_twin.parallel import BACKENDS, pool_map_ordered, ray_map
-from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
+from pnp_twin.twin.output import check_out_folder
 
 TD_RULES = "FIFO,LIFO,SIRO,SD,LD,SPT"
 
@@ -215,6 +216,7 @@ def train_cmd(**kw: Any) -> None:
     _need_torch()
     from pnp_twin.policies.hdqn.network import PRESETS
 
+    _check_train_out(Path(kw["out"]), kw["scenario"])
     targets = kw["targets"]
     if targets not in ("td", "rollout"):
         fail(f"--targets: '{targets}' is not allowed; allowed td, rollout")
@@ -234,6 +236,16 @@ def train_cmd(**kw: Any) -> None:
         folders = _train_seeds(runs, kw["workers"], kw["backend"], kw["address"])
     for f in sorted(folders):
         typer.echo(f)
+
+
+def _check_train_out(out: Path, scenario: str) -> None:
+    """``--out`` holds one folder per run (``<scenario>__<mode>__<seed>``): it must be new,
+    empty or a folder of training runs (to add to or resume), and must not hold the
+    scenario it trains on; checked before anything is written."""
+    runs: set[str] = set()
+    if out.is_dir():
+        runs = {e.name for e in out.iterdir() if e.is_dir() and e.name.count("__") >= 2}
+    check_out_folder(out, {"scenario file": find_scenario(scenario)}, runs)
 
 
 def _train_args(kw: dict[str, Any]) -> TrainArgs:

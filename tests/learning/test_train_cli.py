@@ -146,3 +146,31 @@ def test_ctrl_c_checkpoints_and_exits_130_then_resume_finishes(tmp_path):
     assert (tmp_path / "paper_baseline__async__1" / "resume" / "state.json").is_file()
     again = CliRunner().invoke(app, [*cmd[3:], "--resume"])
     assert again.exit_code == 0, again.output
+
+
+@pytest.mark.parametrize("holds", ["notes.txt", "paper_baseline.toml"])
+def test_train_refuses_an_out_folder_of_other_files_and_writes_nothing(
+    tmp_path: Path, holds: str
+) -> None:
+    """``--out`` is new, empty or a folder of runs; a folder of other files (or the one that
+    holds the scenario) is refused in one line before anything is written."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / holds).write_text("name = 'paper_baseline'\n" if holds.endswith(".toml") else "x")
+    scenario = str(out / holds) if holds.endswith(".toml") else "paper_baseline"
+    before = sorted(p.name for p in out.iterdir())
+    result = CliRunner().invoke(app, ["train", scenario, "--out", str(out), "--steps", "10"])
+    assert result.exit_code == 2
+    assert result.output.count("error:") == 1 and "--out" in result.output
+    assert sorted(p.name for p in out.iterdir()) == before
+
+
+def test_train_accepts_a_folder_that_holds_runs(tmp_path: Path) -> None:
+    out = tmp_path / "runs"
+    (out / "paper_baseline__async__0").mkdir(parents=True)
+    (out / "README.txt").write_text("our runs")
+    args = ["train", "paper_baseline", "--out", str(out), "--steps", "10", "--seed", "5"]
+    args += ["--eval-every", "10", "--eval-seeds", "1", "--set", "duration=20", "--set", "warmup=5"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert (out / "paper_baseline__async__5" / "model.safetensors").is_file()
