@@ -38,13 +38,16 @@ def headroom_html(data: dict[str, Any]) -> str:
     for role, e in rows:
         good = isinstance(e.get("gain_ci_low"), (int, float)) and e["gain_ci_low"] > 0
         cpu = e.get("cpu_ms_per_decision")
+        gain = f"{_num(e['gain'], True)}"
+        interval = f"[{_num(e['gain_ci_low'], True)}, {_num(e['gain_ci_high'], True)}]"
+        if role == "best rule":  # the reference itself: no difference to state
+            gain, interval = "reference", ""
         body.append(
             "<tr>"
             f"<td>{esc(role)}</td><td>{esc(str(e['policy']))}</td>"
             f"<td>{_num(e['gripping_rate'])}</td>"
             f"<td>[{_num(e['ci_low'])}, {_num(e['ci_high'])}]</td>"
-            f"<td class='{'good' if good else ''}'>{_num(e['gain'], True)}</td>"
-            f"<td>[{_num(e['gain_ci_low'], True)}, {_num(e['gain_ci_high'], True)}]</td>"
+            f"<td class='{'good' if good else ''}'>{gain}</td><td>{interval}</td>"
             f"<td>{'' if cpu is None else _num(cpu)}</td>"
             "</tr>"
         )

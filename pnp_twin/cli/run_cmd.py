@@ -12,6 +12,7 @@ import contextlib
 import json
 import math
 from enum import StrEnum
+from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -364,3 +365,9 @@ def list_scenarios() -> None:
         feed = "trace" if s.feeder.arrival == "trace" else f"{s.feeder.rate:g}/s {s.feeder.arrival}"
         t.add_row(name, str(s.robots.count), feed, s.policy, s.description)
     stdout_console().print(t)
+    models = resources.files("pnp_twin.models")
+    names = sorted(m.name for m in models.iterdir() if (m / "meta.json").is_file())
+    if names:
+        stdout_console().print(
+            "Shipped models (--policy hdqn:NAME, needs the learn extra): " + ", ".join(names)
+        )

@@ -177,6 +177,8 @@ def test_list_names_every_shipped_scenario() -> None:
     assert code == 0
     for name in ("paper_baseline", "two_robot", "trace_replay", "breakdowns"):
         assert name in out
+    for model in ("paper_baseline__async_rollout", "paper_baseline__sync"):  # by name, too
+        assert model in out.replace("\n", "")
 
 
 def test_keyboard_interrupt_exits_130_with_one_line(monkeypatch: pytest.MonkeyPatch) -> None:

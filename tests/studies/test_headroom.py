@@ -54,7 +54,11 @@ def test_json_keys_and_interval_order(study: tuple[Path, dict]) -> None:
     runs = (out / "runs.csv").read_text().splitlines()
     assert runs[0] == "role,policy,seed,gripping_rate"
     assert len(runs) == 1 + 3 * (6 + 1 + 1 + 1 + 1)  # 6 rules, mix, FIFO, lookahead, bound
-    assert "How much could smarter coordination gain" in (out / "report.html").read_text()
+    page = (out / "report.html").read_text()
+    assert "How much could smarter coordination gain" in page
+    # the best rule is the reference: no made-up zero-width paired interval for it
+    row = page[page.index("<td>best rule</td>") :].split("</tr>")[0]
+    assert ">reference</td>" in row and "+0.00" not in row
     assert not list(out.glob(".*.tmp"))  # atomic writes leave nothing behind
     assert not (out / ".study.lock.json").exists()  # the lock is let go
 
