@@ -43,7 +43,35 @@ def one_trace(meta: dict[str, Any] | None) -> bool:
     robots = scenario.get("robots") or {}
     random_failures = bool(robots.get("mtbf")) or any(grid.get("robots.mtbf") or [])
     swept = "feeder.trace" in grid or "feeder.arrival" in grid
-    return feeder.get("arrival") == "trace" and not swept and not random_failures
+    return (
+        feeder.get("arrival") == "trace"
+        and not swept
+        and not random_failures
+        and _trace_count(meta) == 1
+    )
+
+
+def _trace_count(meta: dict[str, Any] | None) -> int:
+    """How many traces the study's replications replay (1 unless meta says more)."""
+    try:
+        return int(((meta or {}).get("trace") or {}).get("traces") or 1)
+    except (TypeError, ValueError):
+        return 1
+
+
+def one_trace_at(meta: dict[str, Any] | None, values: dict[str, Any]) -> bool:
+    """True when the runs at the grid point ``values`` all replay one recorded trace (the
+    ``"trace"`` point of a study whose grid sweeps ``feeder.arrival``, or a study that replays
+    one trace throughout): that point's replications are one sample, with no interval."""
+    if one_trace(meta):
+        return True
+    scenario = (meta or {}).get("scenario") or {}
+    grid = (meta or {}).get("grid") or {}
+    if "feeder.trace" in grid or "feeder.arrival" not in values:
+        return False
+    robots = scenario.get("robots") or {}
+    mtbf = values.get("robots.mtbf", robots.get("mtbf"))
+    return values["feeder.arrival"] == "trace" and not mtbf and _trace_count(meta) == 1
 
 
 def _with_ci(
@@ -76,7 +104,7 @@ def sweep_headline(study: Study) -> str:
             r["gripping_rate_mean"],
             r.get("gripping_rate_ci_low"),
             r.get("gripping_rate_ci_high"),
-            trace,
+            trace or one_trace_at(study.meta, point),
         )
 
     if not grid:

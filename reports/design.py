@@ -153,6 +153,13 @@ def build_design_page(d: dict[str, Any]) -> Page:
         f"(rounds {' → '.join(map(str, d['rounds']))}): {d['runs']} runs instead of "
         f"{d['runs_fixed']}; common random numbers throughout."
     )
+    if d.get("continuous"):
+        how += (
+            f" {', '.join(param_label(p) for p in d['continuous'])}: a continuous range "
+            f"searched by optuna's constrained TPE, {d['trials']} points per combination of "
+            f"the other fields and rules ({d['evaluated']} distinct points evaluated; the "
+            f"Bonferroni level counts all {d['configurations']} allowed)."
+        )
     answer = f'<div class="answer"><p>{esc(d["text"])}</p><p>{esc(how)}</p></div>'
     costs = d.get("costs") or {}
 

@@ -11,7 +11,13 @@ from typing import Any
 import pandas as pd
 
 from pnp_twin.reports import figures, record_figures, style, welch
-from pnp_twin.reports.answers import NO_INTERVAL, headline, one_trace, precision_text
+from pnp_twin.reports.answers import (
+    NO_INTERVAL,
+    headline,
+    one_trace,
+    one_trace_at,
+    precision_text,
+)
 from pnp_twin.reports.html import Page, Section, esc, table_html
 from pnp_twin.reports.load import Study
 from pnp_twin.reports.mix_ranking import mix_section
@@ -266,6 +272,10 @@ def flow_text(study: Study) -> str:
     if rate is None and study.results is not None and "part_flow" in study.results.columns:
         rate = float(study.results["part_flow"].mean())  # what the runs were fed
     shown = f"{float(rate):.3g} parts/s" if rate is not None else "the rate"
+    files = info.get("files") or []
+    if len(files) > 1:  # replication k replays trace k
+        listed = ", ".join(files[:3]) + (", ..." if len(files) > 3 else "")
+        return f"{shown} mean of the {len(files)} replayed traces ({listed}), one per replication"
     return f"{shown} mean of the replayed trace {name}".rstrip()
 
 
@@ -289,6 +299,9 @@ def kpi_table(study: Study) -> str:
             return "–"
         if trace:  # one replayed trace is one sample: no interval
             return f"{mean:.{digits}f}{unit}"
+        if one_trace_at(study.meta, {p: row[p] for p in grid}):  # the trace point of a grid
+            note = f'<span class="pm">{esc(NO_INTERVAL)}</span>' if kpi == "gripping_rate" else ""
+            return f"{mean:.{digits}f}{unit}{note}"
         pm = fmt_pm(
             row.get(f"{kpi}_ci_low", math.nan) * scale,
             row.get(f"{kpi}_ci_high", math.nan) * scale,
@@ -366,17 +379,24 @@ def whatif_section(study: Study) -> Section | None:
         tuple(r[p] for p in grid): str(r["policy"])
         for _, r in (best if best is not None else s).iterrows()
     }
-    trace = one_trace(study.meta)
+    costs = study.meta.get("costs") or {}
+    cost_at = {
+        (int(c["point"]), str(c["policy"])): c.get("total_cost") for c in costs.get("rows") or []
+    }
     rows = []
     for _, r in s.iterrows():
         here = tuple(r[p] for p in grid)
+        values = {p: r[p] for p in grid}
+        trace = one_trace_at(study.meta, values)  # one replayed trace: one sample
         rows.append(
             {
-                "values": {p: r[p] for p in grid},
+                "values": values,
                 "policy": r["policy"],
                 "mean": r["gripping_rate_mean"],
                 "low": None if trace else r.get("gripping_rate_ci_low"),
                 "high": None if trace else r.get("gripping_rate_ci_high"),
+                "why": NO_INTERVAL if trace else "",
+                "cost": cost_at.get((int(r["point"]), str(r["policy"]))) if "point" in r else None,
                 "note": "the best rule here"
                 if len(study.policies) > 1 and winners.get(here) == r["policy"]
                 else "",
@@ -385,10 +405,11 @@ def whatif_section(study: Study) -> Section | None:
     ref = reference_point(study)
     start = {**ref, "policy": winners.get(tuple(ref[p] for p in grid), study.policies[0])}
     conf = f"{100 * float(study.meta.get('confidence') or 0.95):g} %"
-    panel = whatif_html(grid, rows, conf, start)
+    panel = whatif_html(grid, rows, conf, start, no_cost="" if costs else "no cost file")
     intro = "Choose a value of each swept field and a rule: the gripping rate the study "
-    intro += "measured there, with its confidence interval (from the stored runs; nothing is "
-    intro += "simulated)."
+    intro += "measured there, with its confidence interval"
+    intro += f" and total cost, priced from {costs.get('file')}," if costs else ""
+    intro += " (from the stored runs; nothing is simulated)."
     return Section("whatif", "What if", esc(intro), [panel])
 
 

@@ -25,9 +25,10 @@ SCRIPT = """
     var row = data.rows.find(function (r) { return r.key === want; });
     if (!row) { out.textContent = 'This combination was not run in the study.'; return; }
     var text = 'G = ' + row.mean.toFixed(1) + ' %%';
-    text += row.low === null ? ' (no interval)' :
+    text += row.low === null ? ' (' + (row.why || 'no interval') + ')' :
       ' (' + data.level + ' CI ' + row.low.toFixed(1) + ' to ' + row.high.toFixed(1) + ' %%)';
     if (row.cost !== null) { text += ' · total cost ' + Math.round(row.cost).toLocaleString('en'); }
+    else if (data.nocost) { text += ' · ' + data.nocost; }
     if (row.note) { text += ' · ' + row.note; }
     out.textContent = text;
   }
@@ -51,9 +52,12 @@ def whatif_html(
     level: str = "95 %",
     start: dict[str, Any] | None = None,
     panel_id: str = "whatif",
+    no_cost: str = "",
 ) -> str:
     """The panel: ``rows`` are {values: {path: value}, policy, mean, low, high, cost?,
-    note?}; ``start`` the combination shown first (else the first row's)."""
+    note?, why? (said instead of the interval when low is None)}; ``start`` the combination
+    shown first (else the first row's); ``no_cost`` what a row without a cost says (e.g.
+    "no cost file")."""
     if not rows:
         return ""
     keys = [*paths, "policy"]
@@ -72,6 +76,7 @@ def whatif_html(
                 "high": _num(r.get("high")),
                 "cost": _num(r.get("cost")),
                 "note": r.get("note") or "",
+                "why": r.get("why") or "",
             }
         )
     first = start or {**rows[0]["values"], "policy": rows[0]["policy"]}
@@ -84,7 +89,8 @@ def whatif_html(
             for o in options[k]
         )
         controls.append(f"<label>{esc(label)} <select>{opts}</select></label>")
-    payload = json.dumps({"rows": data, "level": level}).replace("</", "<\\/")
+    payload = json.dumps({"rows": data, "level": level, "nocost": no_cost})
+    payload = payload.replace("</", "<\\/")
     return (
         "<style>.whatif .controls{display:flex;flex-wrap:wrap;gap:10px 22px;margin:6px 0 10px}"
         ".whatif select{margin-left:6px;padding:3px 6px;font:inherit}"

@@ -18,7 +18,7 @@ import simpy
 from simpy.events import URGENT
 
 from pnp_twin.twin.scenario import FeederConfig, Scenario
-from pnp_twin.twin.trace import TraceError, read_trace, resolve  # noqa: F401  (TraceError kept importable)
+from pnp_twin.twin.trace import TraceError, read_trace, resolve, trace_paths  # noqa: F401  (TraceError kept importable)
 
 if TYPE_CHECKING:
     from pnp_twin.twin.belt import Belt
@@ -114,7 +114,7 @@ class Feeder:
         return out
 
     def _replay(self, duration: float) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
-        path = resolve(self.config.trace or "", self.source_dir)
+        path = trace_paths(self.config.trace or "", self.source_dir)[0]  # a run: the first
         times, ys, kinds = read_trace(path, self.width)
         keep = times < duration
         log.info("replaying %d of %d parts from %s", int(keep.sum()), len(times), path)

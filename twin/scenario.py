@@ -48,6 +48,8 @@ def _integral(value: Any) -> Any:
 Real = Annotated[float, Strict()]
 INTEGRAL = BeforeValidator(_integral)  # last in an Annotated int: runs before the checks
 Text = Annotated[str, Strict()]
+TracePath = Annotated[str, Strict(), Field(min_length=1, max_length=4096)]
+TracePaths = Annotated[tuple[TracePath, ...], Field(min_length=1, max_length=1000)]
 
 YEAR = 31_536_000.0  # s: the longest run or warm-up a scenario may ask for
 SEED_MAX = 2**63 - 1
@@ -123,12 +125,11 @@ class FeederConfig(Frozen):
     cv: Real = num(
         0.3, "1", "Coefficient of variation of the gaps (normal arrivals only).", ge=0, le=10
     )
-    trace: Text | None = Field(
+    trace: TracePath | TracePaths | None = Field(
         None,
-        min_length=1,
-        max_length=4096,
-        description="CSV of recorded arrivals (columns time, y[, kind]); relative paths are "
-        "resolved against the scenario file's folder. Required when arrival = 'trace', "
+        description="CSV of recorded arrivals (columns time, y[, kind]), a list of them or a "
+        "folder of them (a study's replication k replays the k-th, by name); relative paths "
+        "are resolved against the scenario file's folder. Required when arrival = 'trace', "
         "refused otherwise.",
     )
     lateral: Literal["normal", "uniform"] = Field(

@@ -23,7 +23,7 @@ import csv
 import io
 import logging
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -64,10 +64,50 @@ class Trace:
 
 
 def trace_file(scenario: Scenario) -> Path | None:
-    """The trace a scenario replays, resolved against its file's folder; None if none."""
+    """The (first) trace a scenario replays, resolved against its file's folder; None if none."""
+    files = trace_files(scenario)
+    return files[0] if files else None
+
+
+def trace_files(scenario: Scenario) -> list[Path]:
+    """Every trace a scenario replays (one, a list, or a folder's CSV files by name)."""
     if scenario.feeder.arrival != "trace" or not scenario.feeder.trace:
-        return None
-    return resolve(scenario.feeder.trace, scenario.source_dir)
+        return []
+    return trace_paths(scenario.feeder.trace, scenario.source_dir)
+
+
+def trace_paths(trace: str | Sequence[str], source_dir: str | Path | None) -> list[Path]:
+    """The files ``feeder.trace`` names: a file, a list of files, or a folder whose ``*.csv``
+    files (sorted by name) are the traces; a folder without one is refused naming it."""
+    out: list[Path] = []
+    for name in [trace] if isinstance(trace, str) else list(trace):
+        path = resolve(str(name), source_dir)
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir() if p.suffix.lower() == ".csv")
+            if not found:
+                raise TraceError(
+                    f"feeder.trace: '{path}' is a folder without .csv traces; give a trace "
+                    "file, a list of them, or a folder of time,y[,kind] CSV files"
+                )
+            out += found
+        else:
+            out.append(path)
+    return out
+
+
+def for_replication(scenario: Scenario, replication: int) -> Scenario:
+    """``scenario`` as replication ``replication`` of a study runs it: with several traces,
+    replaying the replication's own trace (replication k replays trace k); else unchanged."""
+    files = trace_files(scenario)
+    if len(files) <= 1:
+        return scenario
+    if not 0 <= replication < len(files):
+        raise TraceError(
+            f"feeder.trace: replication {replication + 1} has no trace; the {len(files)} "
+            f"traces are the replications, so give at most {len(files)} replications"
+        )
+    feeder = scenario.feeder.model_copy(update={"trace": str(files[replication])})
+    return scenario.model_copy(update={"feeder": feeder})
 
 
 def resolve(trace: str, source_dir: str | Path | None) -> Path:
@@ -195,10 +235,17 @@ def read_trace(path: Path, width: float) -> tuple[np.ndarray, np.ndarray, list[s
 
 
 def check_replay(scenario: Scenario) -> Trace | None:
-    """The trace ``scenario`` replays, checked against its duration and warm-up."""
-    path = trace_file(scenario)
-    if path is None:
-        return None
+    """The (first) trace ``scenario`` replays; every one is checked (:func:`check_replays`)."""
+    traces = check_replays(scenario)
+    return traces[0] if traces else None
+
+
+def check_replays(scenario: Scenario) -> list[Trace]:
+    """Every trace ``scenario`` replays, each checked against its duration and warm-up."""
+    return [_checked(scenario, path) for path in trace_files(scenario)]
+
+
+def _checked(scenario: Scenario, path: Path) -> Trace:
     trace = load_trace(path, scenario.belt.width)
     first, last, end = float(trace.times[0]), float(trace.times[-1]), trace.end
     span = f"{len(trace.times)} parts from {first:g} to {last:g} s"
@@ -217,10 +264,11 @@ def check_replay(scenario: Scenario) -> Trace | None:
     return trace
 
 
-def gap_stats(trace: Trace) -> tuple[float, float]:
-    """(mean rate in parts/s, coefficient of variation of the gaps) of a trace: the rate is
-    the parts after the first over the span they arrive in."""
-    gaps = np.diff(trace.times)
+def gap_stats(trace: Trace | Sequence[Trace]) -> tuple[float, float]:
+    """(mean rate in parts/s, coefficient of variation of the gaps) of a trace (or of several,
+    their gaps pooled): the rate is the parts after the first over the span they arrive in."""
+    traces = [trace] if isinstance(trace, Trace) else list(trace)
+    gaps = np.concatenate([np.diff(t.times) for t in traces]) if traces else np.empty(0)
     if len(gaps) == 0 or float(gaps.sum()) <= 0:
         return math.nan, math.nan
     mean = float(gaps.mean())
@@ -245,10 +293,16 @@ def arrival_from_trace(
         or "feeder.trace" in overrides
     ):
         return data, None
-    path = resolve(str(feeder["trace"]), source_dir)
+    raw = feeder["trace"]
+    paths = trace_paths(raw if isinstance(raw, str) else [str(p) for p in raw], source_dir)
     width = (data.get("belt") or {}).get("width")
-    trace = load_trace(path, float(width) if isinstance(width, int | float) else math.inf)
-    rate, cv = gap_stats(trace)
+    belt = float(width) if isinstance(width, int | float) else math.inf
+    traces = [load_trace(p, belt) for p in paths]
+    rate, cv = gap_stats(traces)
+    parts = sum(len(t.times) for t in traces)
+    path = paths[0]
+    named = f"the trace '{path.name}'" if len(paths) == 1 else f"the {len(paths)} traces"
+    named += f" ({parts} parts)"
     out = {**data, "feeder": {k: v for k, v in feeder.items() if k != "trace"}}
     said = []
     if "feeder.rate" not in overrides and math.isfinite(rate):
@@ -258,7 +312,5 @@ def arrival_from_trace(
         out["feeder"]["cv"] = round(min(cv, 10.0), 6)
         said.append(f"its gaps' coefficient of variation {cv:.3g}")
     what = " and ".join(said) or "the rate and CV you set"
-    return out, (
-        f"feeder.arrival = {arrival}: replaces the trace '{path.name}' ({len(trace.times)} parts) "
-        f"with {arrival} arrivals at {what}"
-    )
+    said_line = f"feeder.arrival = {arrival}: replaces {named} with {arrival} arrivals at {what}"
+    return out, said_line

@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 from importlib import import_module
 
-from pnp_twin.cli.app import app
+from pnp_twin.cli.app import app, end_on_sigterm
 
 COMMANDS: dict[str, str] = {
     "run": "run_cmd",
@@ -51,7 +51,9 @@ app.loader = load_commands
 
 
 def main() -> None:
-    """Console-script entry point of ``pnp-twin`` (and ``python -m pnp_twin``)."""
+    """Console-script entry point of ``pnp-twin`` (and ``python -m pnp_twin``); SIGTERM
+    ends a command as Ctrl-C does, exit code 143 (:func:`~pnp_twin.cli.app.end_on_sigterm`)."""
+    end_on_sigterm()
     name = _command_name(sys.argv[1:])
     if name in COMMANDS:
         app.loader = lambda: load_commands([name])

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import errno
 import logging
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import Annotated, Any, NoReturn
@@ -23,6 +24,12 @@ from pnp_twin.twin.errors import UserError
 
 USER_ERROR = 2
 INTERRUPTED = 130
+TERMINATED = 143  # 128 + SIGTERM, as a shell reports a process ended by it
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, ``timeout``, a job scheduler): unwinds like Ctrl-C, so a study
+    writes its buffered journal rows and lets go of its folder before it ends."""
 
 # Arguments and options shared by the command modules.
 ScenarioArg = Annotated[
@@ -68,6 +75,8 @@ class OneLineErrors(TyperGroup):
             if e.errno == errno.EPIPE:  # stdout closed early (`| head`): not a user mistake
                 raise
             fail(os_error_message(e))
+        except Terminated:
+            fail("terminated", TERMINATED)
         except KeyboardInterrupt:
             fail("interrupted", INTERRUPTED)
 
@@ -92,6 +101,8 @@ class OneLineErrors(TyperGroup):
             code = _report(e.format_message(), e.exit_code)
         except typer.Abort:
             code = _report("interrupted", INTERRUPTED)
+        except Terminated:
+            code = _report("terminated", TERMINATED)
         except KeyboardInterrupt:
             code = _report("interrupted", INTERRUPTED)
         else:
@@ -178,6 +189,17 @@ def root(
             logger.handlers = [handler]
 
 
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated
+
+
+def end_on_sigterm() -> None:
+    """SIGTERM ends the command as Ctrl-C does (finished work written, the folder let go),
+    with exit code 143; installed by the console-script entry point only."""
+    signal.signal(signal.SIGTERM, _terminate)
+
+
 def main() -> None:
     """Console-script entry point of ``pnp-twin`` (and ``python -m twin``)."""
+    end_on_sigterm()
     app()

@@ -20,13 +20,13 @@ from pnp_twin.cli.app import ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note
 from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.studies.calibrate_eval import EVALS
-from pnp_twin.studies.capacity import SUMMARY_FILE, run_capacity
+from pnp_twin.studies.capacity import SUMMARY_FILE, check_capacity, run_capacity
 from pnp_twin.studies.lock import StudyLock
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
 from pnp_twin.twin.output import check_out_folder, dumps_json
 
-OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE, "report.html")
+OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
 
 
 @app.command("capacity")
@@ -42,6 +42,14 @@ def capacity_cmd(
     replications: Annotated[
         int, typer.Option("--replications", "-r", help="Replications per flow.")
     ] = 5,
+    vary: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--vary",
+            help="PATH=LO:HI (whole numbers) or PATH=V1,V2,...: one search per combination "
+            "(repeatable).",
+        ),
+    ] = None,
     start: Annotated[
         float | None, typer.Option("--start", help="First flow tried, parts/s (feeder.rate).")
     ] = None,
@@ -55,6 +63,7 @@ def capacity_cmd(
     sc = load_scenario(scenario, parse_sets(sets or []))
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; give a folder")
+    check_capacity(sc, target, confidence, replications, vary or [], start)  # before the folder
     check_out_folder(out, {"scenario file": find_scenario(scenario)}, OURS)
     command = shlex.join(["pnp-twin", *sys.argv[1:]])
     lock = StudyLock(out)
@@ -71,6 +80,7 @@ def capacity_cmd(
             engine.value,
             start,
             command,
+            vary=vary or [],
         )
     finally:
         lock.release()
@@ -80,9 +90,15 @@ def capacity_cmd(
         note(f"report: {build_capacity_report(out)}")
     if json_out:
         keep = ("scenario", "curve", "seeds")
-        typer.echo(dumps_json({k: v for k, v in result.items() if k not in keep}, indent=2))
+        data = {k: v for k, v in result.items() if k not in keep}
+        if "configurations" in data:
+            data["configurations"] = [
+                {k: v for k, v in c.items() if k != "curve"} for c in data["configurations"]
+            ]
+        typer.echo(dumps_json(data, indent=2))
         return
-    typer.echo(result["text"])
+    for c in result.get("configurations") or [result]:
+        typer.echo(c["text"])
     note(
         f"{result['evaluated']} flows evaluated ({result['simulated']} simulated, "
         f"{result['replayed']} replayed from {out / EVALS})"

@@ -20,13 +20,13 @@ from pnp_twin.cli.app import ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note
 from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.studies.calibrate_eval import EVALS
-from pnp_twin.studies.design import SUMMARY_FILE, run_design
+from pnp_twin.studies.design import SUMMARY_FILE, check_design, run_design
 from pnp_twin.studies.lock import StudyLock
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
 from pnp_twin.twin.output import check_out_folder, dumps_json
 
-OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE, "report.html")
+OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
 
 
 @app.command("design")
@@ -36,7 +36,11 @@ def design_cmd(
     out: Annotated[Path, typer.Option("--out", "-o", help="Output folder (rerun to reuse).")],
     vary: Annotated[
         list[str] | None,
-        typer.Option("--vary", help="PATH=LO:HI (whole numbers) or PATH=V1,V2,... (repeatable)."),
+        typer.Option(
+            "--vary",
+            help="PATH=LO:HI (whole numbers), PATH=V1,V2,... or PATH=2.0:6.0 (continuous: "
+            "a bound with a decimal point; searched by optuna). Repeatable.",
+        ),
     ] = None,
     policy: Annotated[
         list[str] | None, typer.Option("--policy", "-p", help="Rule to consider (repeatable).")
@@ -52,6 +56,10 @@ def design_cmd(
     max_replications: Annotated[
         int, typer.Option("--max-replications", help="Most replications where still open.")
     ] = 24,
+    trials: Annotated[
+        int,
+        typer.Option("--trials", help="Points optuna evaluates per discrete combination."),
+    ] = 30,
     sets: SetOpt = None,
     workers: Annotated[int | None, typer.Option("--workers", "-w", min=1, max=1024)] = None,
     engine: Annotated[Engine, typer.Option("--engine", help="auto, fast or simpy.")] = Engine.auto,
@@ -64,6 +72,9 @@ def design_cmd(
         raise UserError(f"--out {out}: is a file; give a folder")
     if not vary and not policy:
         raise UserError("--vary: give at least one field to vary, e.g. --vary robots.count=3:8")
+    check_design(
+        sc, target, vary or [], costs, confidence, replications, max_replications, trials
+    )  # every mistake is one line before the folder exists
     check_out_folder(out, {"scenario file": find_scenario(scenario), "costs": costs}, OURS)
     command = shlex.join(["pnp-twin", *sys.argv[1:]])
     lock = StudyLock(out)
@@ -82,6 +93,7 @@ def design_cmd(
             workers or (os.cpu_count() or 1),
             engine.value,
             command,
+            trials=trials,
         )
     finally:
         lock.release()

@@ -69,7 +69,10 @@ def headroom(
     duration: Annotated[
         float | None,
         typer.Option(
-            "--duration", min=1.0, help="Feeding time per run, s (default the scenario's)."
+            "--duration",
+            min=1.0,
+            help="Feeding time per run, s (default the scenario's); the warm-up is then "
+            "at most a fifth of it.",
         ),
     ] = None,
     sets: SetOpt = None,

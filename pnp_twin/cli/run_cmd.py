@@ -44,7 +44,7 @@ from pnp_twin.twin.output import (
 )
 from pnp_twin.twin.run import RunResult, simulate
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.trace import read_trace, trace_file
+from pnp_twin.twin.trace import read_trace, trace_file, trace_files
 
 
 class Engine(StrEnum):
@@ -142,6 +142,12 @@ def run(
                 raise OutputError(f"--report: '{report}' is the file {option} writes")
     scn = _load(scenario, sets)
     inputs = {"scenario file": find_scenario(scenario), "trace": trace_file(scn)}
+    traces = trace_files(scn)
+    if len(traces) > 1:  # one run, one trace: the first (a study replays trace k in rep k)
+        note(
+            f"feeder.trace: {len(traces)} traces; this run replays the first, "
+            f"'{traces[0].name}' (a study replays trace k in replication k)"
+        )
     for option, output in (("--events", events), ("--spans", spans), ("--report", report)):
         if output is not None:
             check_not_inputs(output, inputs, option)
@@ -274,8 +280,10 @@ def resolved_mapping(scenario: Scenario) -> dict[str, Any]:
     """
     data = scenario.model_dump(mode="json", exclude={"source_dir"})
     trace = scenario.feeder.trace
-    if trace and scenario.source_dir and not Path(trace).is_absolute():
-        data["feeder"]["trace"] = str(Path(scenario.source_dir) / trace)
+    if trace and scenario.source_dir:  # one file, a folder, or a list of them
+        names = [trace] if isinstance(trace, str) else list(trace)
+        absolute = [str(Path(scenario.source_dir) / t) for t in names]  # absolute ones stay
+        data["feeder"]["trace"] = absolute[0] if isinstance(trace, str) else absolute
     data = _drop_none(data)
     # run settings first, then the sections, as in the shipped files
     return {k: v for k, v in data.items() if not isinstance(v, dict)} | {

@@ -41,13 +41,14 @@ from pnp_twin.cli.console import note, stderr_console, stdout_console
 from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.studies import Options, build_plan, run_sweep
 from pnp_twin.studies.calibrate_eval import EVALS
+from pnp_twin.studies.costing import check_costs, read_costs
 from pnp_twin.studies.folder import Tables
 from pnp_twin.studies.journal import DEFINITION
-from pnp_twin.studies.plan import AUTO
+from pnp_twin.studies.plan import AUTO, StudyPlan
 from pnp_twin.studies.rulemix import DEFAULT_BUDGET, check_mix, run_mix
 from pnp_twin.studies.sizing import COUNT, MTBF, check_size, run_size
 from pnp_twin.twin.budget import check_study
-from pnp_twin.twin.errors import UserError, excerpt
+from pnp_twin.twin.errors import UserError, check_regular, excerpt
 from pnp_twin.twin.loader import (
     ScenarioError,
     find_scenario,
@@ -135,6 +136,14 @@ FreshOpt = Annotated[
     bool, typer.Option("--fresh", help="Discard the folder's earlier runs and start over.")
 ]
 NoReportOpt = Annotated[bool, typer.Option("--no-report", help="Do not write report.html.")]
+CostsOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--costs",
+        metavar="FILE",
+        help="Cost file (TOML, as design's): the what-if panel shows each point's total cost.",
+    ),
+]
 ForceOpt = Annotated[
     bool, typer.Option("--force", help="Run even above the work limits (twin.budget).")
 ]
@@ -207,6 +216,16 @@ def _options(
     opts = Options(backend.value, w, address, fresh, progress, command, confidence)
     opts.engine = engine.value
     return opts
+
+
+def _costs(path: Path | None, plan: StudyPlan) -> dict[str, Any] | None:
+    """``--costs``: the prices, checked against every arm and belt speed the study runs."""
+    if path is None:
+        return None
+    check_regular(path, "--costs", UserError)
+    prices = read_costs(path)
+    check_costs(prices, plan.scenarios)
+    return prices
 
 
 def _load(scenario: str, sets: list[str] | None) -> Scenario:
@@ -297,7 +316,7 @@ def _precision_line(out: Path) -> str | None:
     )
 
 
-OURS = (".study.lock", ".study.lock.json", DEFINITION, "meta.json", "runs", EVALS)
+OURS = (".study.lock", ".study.lock.json", DEFINITION, EVALS)
 """Entries that make a folder one of our studies (or calibrations), to resume."""
 
 
@@ -371,14 +390,17 @@ def sweep(
     no_report: NoReportOpt = False,
     force: ForceOpt = False,
     engine: EngineOpt = Engine.auto,
+    costs: CostsOpt = None,
 ) -> None:
     """Run a study: the sweep grid x policies x replications (common random numbers)."""
     sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
     _check_work(sc, reps, _policy_count(sc, policy), force)
     plan = build_plan(sc, policies=policy, replications=reps)
+    prices = _costs(costs, plan)
     _check_out(out, scenario, sc)
     with removed_if_refused(out), progress_bar("sweep") as update:
         opts = _options(workers, backend, address, fresh, update, engine=engine)
+        opts.costs, opts.costs_file = prices, str(costs or "")
         tables = run_sweep(plan, out, opts)
     stdout_console().print(_sweep_table(tables, list(plan.grid)))
     line = _precision_line(out)
@@ -415,6 +437,7 @@ def size(
     ] = "extend",
     force: ForceOpt = False,
     engine: EngineOpt = Engine.auto,
+    costs: CostsOpt = None,
 ) -> None:
     """The smallest robot count reaching a target gripping rate with a confidence."""
     sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
@@ -422,8 +445,10 @@ def size(
     counts = 1 if COUNT in grid else max(8, 2 * sc.robots.count)  # what run_size adds
     _check_work(sc, reps, _policy_count(sc, policy), force, counts * (1 if MTBF in grid else 2))
     target = check_size(sc, target, confidence, policy, reps, layout)
+    prices = _costs(costs, build_plan(sc, policies=policy, replications=reps)) if costs else None
     _check_out(out, scenario, sc)
     opts = _options(workers, backend, address, fresh, None, confidence, engine)
+    opts.costs, opts.costs_file = prices, str(costs or "")
     with removed_if_refused(out), progress_bar("size") as update:
         opts.progress = update
         tables, sizing = run_size(sc, out, target, opts, policy, reps, layout)

@@ -208,8 +208,10 @@ def scenario_mapping(cal: Calibration, source: str, sets: dict[str, Any]) -> dic
     data = apply_overrides(read_mapping(path), sets) if sets else read_mapping(path)
     data = raw_with_values(data, cal.problem.values(cal.best.x), cal.problem.scenario)
     trace = data.get("feeder", {}).get("trace") if isinstance(data.get("feeder"), dict) else None
-    if trace and not Path(trace).is_absolute():  # the file moves to another folder
+    if isinstance(trace, str) and not Path(trace).is_absolute():  # the file moves elsewhere
         data["feeder"]["trace"] = str((path.parent / trace).resolve())
+    elif isinstance(trace, list):  # several traces: each made absolute
+        data["feeder"]["trace"] = [str((path.parent / str(t)).resolve()) for t in trace]
     return data
 
 

@@ -16,17 +16,24 @@ rule's bounds. Every evaluated flow is journalled in ``DIR/evals/`` (as calibrat
 by the scenario, rules and seeds), so asking again with another target or confidence
 replays the flows it needs and simulates only new ones. ``DIR/capacity.json`` holds the
 answer and the curve of G against flow (every evaluated flow).
+
+With ``vary`` (``PATH=LO:HI`` whole numbers or ``PATH=V1,V2,...``, as in ``design``) the
+search runs for every combination of the varied fields: ``configurations`` holds each one's
+choice, crossings and curve, and the top-level answer is the first configuration's. Each
+configuration's interval is its own (no selection is made among them).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.calibrate_eval import Evaluator
+from pnp_twin.studies.design import choice_text, parse_vary
 from pnp_twin.studies.plan import StudyError
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.studies.sizing import selected_confidence
@@ -41,6 +48,8 @@ MAX_STEPS = 8  # doublings or halvings while bracketing
 MAX_BISECTIONS = 12
 RATE_DIGITS = 4  # flows are rounded to 4 significant digits (reused across questions)
 CRITERIA = {"max_rate": "mean", "ci_low": "low", "ci_high": "high"}
+MIN_FLOW, MAX_FLOW = 0.001, 1000.0  # parts/s: the scenario schema's bounds on feeder.rate
+MAX_REPLICATIONS = 1000  # per flow
 
 
 def _round(rate: float) -> float:
@@ -57,7 +66,9 @@ class Capacity:
         target: float,
         confidence: float,
         progress: Callable[[int], None] | None = None,
+        name: str = "",
     ) -> None:
+        self.name = name  # the configuration, in the journal's labels ("" for the first)
         self.scenario = scenario
         self.evaluator = evaluator
         self.target = target
@@ -75,7 +86,7 @@ class Capacity:
             sc = with_overrides(self.scenario, {"feeder.rate": rate})
         except ScenarioError as e:
             raise StudyError(f"capacity: flow {rate:g} parts/s: {e}") from None
-        runs = self.evaluator.runs([sc], [f"flow {rate:g}"])[0]
+        runs = self.evaluator.runs([sc], [f"{self.name}flow {rate:g}"])[0]
         best: dict[str, Any] | None = None
         for rule, rows in runs.items():
             mean, low, high = t_interval([r["gripping_rate"] for r in rows], self.level)
@@ -107,19 +118,19 @@ class Capacity:
                 hi = start
         steps = 0
         while hi is None:  # grow until the target is missed
-            if steps >= MAX_STEPS:
-                return lo, "above"
             assert lo is not None
-            r = _round(lo * 2)
+            if steps >= MAX_STEPS or lo >= MAX_FLOW:
+                return lo, "above"
+            r = min(_round(lo * 2), MAX_FLOW)
             steps += 1
             if self.ok(r, key):
                 lo = r
             else:
                 hi = r
         while lo is None:  # shrink until the target is met
-            if steps >= MAX_STEPS:
+            if steps >= MAX_STEPS or hi <= MIN_FLOW:
                 return None, "below"
-            r = _round(hi / 2)
+            r = max(_round(hi / 2), MIN_FLOW)
             steps += 1
             if self.ok(r, key):
                 lo = r
@@ -138,6 +149,56 @@ class Capacity:
         return lo, "found"
 
 
+def check_capacity(
+    scenario: Scenario,
+    target: float,
+    confidence: float = 0.95,
+    replications: int = 5,
+    vary: Sequence[str] = (),
+    start: float | None = None,
+) -> list[dict[str, Any]]:
+    """Every check of a capacity question before anything is written; returns the
+    combinations of the varied fields ([{}] without any), or raises a one-line StudyError."""
+    if not 0 < target <= 100:
+        raise StudyError(f"--target: {target:g} is not allowed; give a percentage in (0, 100]")
+    if not 0 < confidence < 1:
+        raise StudyError(f"--confidence: {confidence:g} is not allowed; give 0 < c < 1")
+    if not 2 <= replications <= MAX_REPLICATIONS:
+        raise StudyError(
+            f"--replications: {replications} is not allowed; give 2 to {MAX_REPLICATIONS}"
+        )
+    if start is not None and not (math.isfinite(start) and MIN_FLOW <= start <= MAX_FLOW):
+        raise StudyError(
+            f"--start: {start:g} parts/s is not allowed; give a flow from {MIN_FLOW:g} to "
+            f"{MAX_FLOW:g} parts/s"
+        )
+    grid: dict[str, list[Any]] = {}
+    for spec in vary:
+        path, values = parse_vary(spec)
+        if path in grid:
+            raise StudyError(f"--vary {path}: given twice; give each field once")
+        if not isinstance(values, list):
+            raise StudyError(
+                f"--vary {spec}: capacity takes a list or a range of whole numbers (a "
+                "continuous range is for design)"
+            )
+        if path == "feeder.rate":
+            raise StudyError("--vary feeder.rate: the part flow is what capacity searches")
+        grid[path] = values
+    combos = [dict(zip(grid, c, strict=True)) for c in itertools.product(*grid.values())]
+    for point in combos:
+        try:
+            sc = with_overrides(scenario, point) if point else scenario
+        except ScenarioError as e:
+            raise StudyError(f"--vary {point}: {e}") from None
+        if sc.feeder.arrival == "trace":
+            raise StudyError(
+                "capacity: a replayed trace fixes the part flow; add --set "
+                "feeder.arrival=poisson (or normal) to search the flow at the trace's variability"
+            )
+    return combos
+
+
 def run_capacity(
     scenario: Scenario,
     out: Path,
@@ -150,65 +211,86 @@ def run_capacity(
     start: float | None = None,
     command: str = "",
     progress: Callable[[int], None] | None = None,
+    vary: Sequence[str] = (),
 ) -> dict[str, Any]:
     """Find the line's capacity at ``target`` into ``out``; returns capacity.json's mapping."""
-    if not 0 < target <= 100:
-        raise StudyError(f"--target: {target:g} is not allowed; give a percentage in (0, 100]")
-    if not 0 < confidence < 1:
-        raise StudyError(f"--confidence: {confidence:g} is not allowed; give 0 < c < 1")
-    if replications < 2:
-        raise StudyError(f"--replications: {replications} is not allowed; give 2 or more")
-    if scenario.feeder.arrival == "trace":
-        raise StudyError(
-            "capacity: a replayed trace fixes the part flow; add --set feeder.arrival=poisson "
-            "(or normal) to search the flow at the trace's variability"
-        )
+    combos = check_capacity(scenario, target, confidence, replications, vary)
     rules = list(policies or [scenario.policy])
     t0 = time.perf_counter()
     seeds = replication_seeds(scenario.seed, replications)
     ev = Evaluator(out, rules, seeds, ["part_flow", "throughput"], workers, engine)
-    cap = Capacity(scenario, ev, target, confidence, progress)
     first = _round(start if start is not None else scenario.feeder.rate)
-    found = {name: cap.crossing(key, first) for name, key in CRITERIA.items()}
-    rate, how = found["max_rate"]
-    curve = sorted(cap.points.values(), key=lambda p: p["rate"])
+    found: list[dict[str, Any]] = []
+    for i, values in enumerate(combos):
+        sc = with_overrides(scenario, values) if values else scenario
+        name = "".join(f"{k}={v}, " for k, v in values.items()) if i else ""
+        cap = Capacity(sc, ev, target, confidence, progress, name)
+        cross = {name: cap.crossing(key, first) for name, key in CRITERIA.items()}
+        rate = cross["max_rate"][0]
+        one: dict[str, Any] = {
+            "choice": values,
+            "max_rate": rate,
+            "ci_low": cross["ci_low"][0],
+            "ci_high": cross["ci_high"][0],
+            "search": {k: v[1] for k, v in cross.items()},
+            "policy": cap.at(rate)["policy"] if rate is not None else None,
+            "robots": sc.robots.count,
+            "curve": sorted(cap.points.values(), key=lambda p: p["rate"]),
+            "confidence": confidence,
+            "target": target,
+        }
+        one["evaluated"] = len(one["curve"])
+        one["text"] = capacity_text(one)
+        found.append(one)
+    head = found[0]
     result: dict[str, Any] = {
         "target": target,
         "confidence": confidence,
-        "max_rate": rate,
-        "ci_low": found["ci_low"][0],
-        "ci_high": found["ci_high"][0],
-        "search": {k: v[1] for k, v in found.items()},
-        "policy": cap.at(rate)["policy"] if rate is not None else None,
+        "max_rate": head["max_rate"],
+        "ci_low": head["ci_low"],
+        "ci_high": head["ci_high"],
+        "search": head["search"],
+        "policy": head["policy"],
         "rules": rules,
-        "confidence_each": cap.level,
+        "confidence_each": selected_confidence(confidence, len(rules)),
         "replications": replications,
         "seeds": seeds,
         "tolerance": TOLERANCE,
-        "curve": curve,
-        "evaluated": len(curve),
+        "curve": head["curve"],
+        "evaluated": sum(c["evaluated"] for c in found),
         "simulated": ev.simulated,
         "replayed": ev.replayed,
         "scenario": scenario.model_dump(mode="json"),
         "scenario_name": scenario.name,
-        "robots": scenario.robots.count,
+        "robots": head["robots"],
         "duration": scenario.duration,
         "warmup": scenario.warmup,
         "engine": engine,
         "command": command,
         "wall_time": time.perf_counter() - t0,
     }
-    result["text"] = capacity_text(result)
+    if vary:
+        result["vary"] = {k: sorted({c["choice"][k] for c in found}) for k in combos[0]}
+        result["configurations"] = [{k: v for k, v in c.items() if k != "target"} for c in found]
+    result["text"] = head["text"] if not vary else " ".join(c["text"] for c in found)
     write_json(result, Path(out) / SUMMARY_FILE, keep_nan=True)
     return result
 
 
+def _line(c: Mapping[str, Any]) -> str:
+    """'6 robots', or '6 robots, arm speed 4 m/s' for a configuration with a choice."""
+    choice = {k: v for k, v in (c.get("choice") or {}).items()}
+    choice.setdefault("robots.count", c["robots"])
+    choice = {"robots.count": choice.pop("robots.count"), **choice}
+    return choice_text({**choice, "policy": ""}).removesuffix(" running ")
+
+
 def capacity_text(c: dict[str, Any]) -> str:
     """'With 6 robots you can promise 11.4 parts/s [11.1, 11.7] at 95 %' and how it ends."""
-    n, conf = c["robots"], f"{100 * c['confidence']:g} %"
+    n, conf = _line(c), f"{100 * c['confidence']:g} %"
     goal = f"G ≥ {c['target']:g} %"
     if c["max_rate"] is None:
-        return f"With {n} robots no flow tried reaches {goal}, even at the lowest."
+        return f"With {n} no flow tried reaches {goal}, even at the lowest."
     lo, hi = c["ci_low"], c["ci_high"]
     span = f" [{lo:.3g}, {hi:.3g}]" if lo is not None and hi is not None else ""
     above = c["search"]["max_rate"] == "above"
@@ -216,6 +298,6 @@ def capacity_text(c: dict[str, Any]) -> str:
     rule = f" running {c['policy']}" if c.get("policy") else ""
     promise = f"; {lo:.3g} parts/s is met with {conf} confidence" if lo is not None else ""
     return (
-        f"With {n} robots{rule} the line sustains {c['max_rate']:.3g} parts/s{span} at {goal}"
+        f"With {n}{rule} the line sustains {c['max_rate']:.3g} parts/s{span} at {goal}"
         f"{more}{promise}."
     )

@@ -1,8 +1,13 @@
 """Design: the cheapest configuration whose gripping rate meets a target with a confidence.
 
 The configurations are every combination of the varied fields (``--vary PATH=LO:HI`` for a
-range of whole numbers, ``--vary PATH=V1,V2,...`` for a list) and the rules. Each one's total
-cost of ownership comes from a cost file (TOML)::
+range of whole numbers, ``--vary PATH=V1,V2,...`` for a list) and the rules. A range written
+with a decimal point (``--vary robots.arm_speed=2.0:6.0``) is continuous: for each
+combination of the discrete fields and the rules, optuna's constrained TPE sampler (seeded
+from the scenario's seed) looks for the cheapest point of the continuous box whose lower
+confidence bound of G reaches the target, in ``trials`` evaluated points (values rounded to
+4 significant digits); every point it evaluates becomes a configuration like the listed ones.
+Each configuration's total cost of ownership comes from a cost file (TOML)::
 
     robot_price = 25000            # per robot; or a table keyed by arm speed in m/s:
     # [robot_price]  "2.0" = 20000   "4.0" = 25000   "6.0" = 32000
@@ -10,12 +15,17 @@ cost of ownership comes from a cost file (TOML)::
     lost_part_cost = 0.05          # per part that reaches the return conveyor
     hours = 4000                   # operating hours the lost parts are counted over
 
-total cost = robots x robot price (at the arm speed) + belt price (at the belt speed) +
+total cost = robots x robot price (at the arm speed; between two priced speeds the price is
+interpolated linearly) + belt price (at the belt speed, likewise) +
 lost_part_cost x (part flow x (1 - G)) x 3600 x hours, with G the mean gripping rate.
 
 Selection with a confidence that holds after it: every configuration's interval of G is
-taken at the Bonferroni level 1 - (1 - c) / K over the K configurations, so all intervals
-hold together with confidence c and the pick among them keeps it. The procedure is
+taken at the Bonferroni level 1 - (1 - c) / (K L) over the K configurations and the L looks
+at each (after ``first`` replications and after each doubling up to ``most``: stopping as
+soon as a bound crosses the target would otherwise inflate the error), so all intervals
+hold together with confidence c and the pick among them keeps it. With a continuous range K
+counts every point the optimiser may evaluate (trials per combination), fixed before it
+starts, so the pick among the points it did evaluate keeps the confidence too. The procedure is
 sequential: every configuration gets ``first`` replications (common random numbers:
 replication k has the same seed everywhere); a configuration is *met* when its lower bound
 reaches the target, *missed* when its upper bound is below it, *open* otherwise; while an
@@ -27,11 +37,14 @@ confidence or cost file simulates only the replications the new question needs.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import time
 import tomllib
+import warnings
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -42,14 +55,29 @@ from pnp_twin.twin.loader import ScenarioError, parse_value, with_overrides
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.stats import t_interval
+from pnp_twin.twin.trace import trace_files
 
 SUMMARY_FILE = "design.json"
 COST_KEYS = ("robot_price", "belt_price", "lost_part_cost", "hours")
 SECONDS_PER_HOUR = 3600.0
+DIGITS = 4  # continuous values are rounded to 4 significant digits (reused across questions)
 
 
-def parse_vary(spec: str) -> tuple[str, list[Any]]:
-    """'robots.count=4:9' -> (path, [4, ..., 9]); 'robots.arm_speed=3,4,5' -> a list."""
+@dataclass(frozen=True)
+class Continuous:
+    """A continuous range LO:HI (written with a decimal point), searched by the optimiser."""
+
+    low: float
+    high: float
+
+
+def _round(x: float) -> float:
+    return float(f"{x:.{DIGITS}g}")
+
+
+def parse_vary(spec: str) -> tuple[str, list[Any] | Continuous]:
+    """'robots.count=4:9' -> (path, [4, ..., 9]); 'robots.arm_speed=3,4,5' -> a list;
+    'robots.arm_speed=2.0:6.0' (a bound with a decimal point) -> a Continuous range."""
     path, sep, text = spec.partition("=")
     path = path.strip()
     if not sep or not path or not text.strip():
@@ -59,12 +87,20 @@ def parse_vary(spec: str) -> tuple[str, list[Any]]:
         raise StudyError(problem.replace("sweep.grid", "--vary"))
     if ":" in text:
         lo_text, _, hi_text = text.partition(":")
+        if "." in lo_text or "." in hi_text:
+            try:
+                a, b = float(lo_text), float(hi_text)
+            except ValueError:
+                raise StudyError(f"--vary {spec}: LO:HI must be two numbers") from None
+            if not (math.isfinite(a) and math.isfinite(b)) or not a < b:
+                raise StudyError(f"--vary {spec}: a continuous range needs LO < HI")
+            return path, Continuous(a, b)
         try:
             lo, hi = int(lo_text), int(hi_text)
         except ValueError:
             raise StudyError(
-                f"--vary {spec}: a range LO:HI is of whole numbers (give a list V1,V2,... "
-                "for other values)"
+                f"--vary {spec}: LO:HI is a range of whole numbers, or a continuous range "
+                "when written with a decimal point (2.0:6.0)"
             ) from None
         if hi < lo or hi - lo > 200:
             raise StudyError(f"--vary {spec}: give LO <= HI, at most 200 apart")
@@ -124,11 +160,18 @@ def read_costs(path: Path | None) -> dict[str, Any]:
 
 
 def _price(price: float | dict[float, float], speed: float, key: str) -> float:
+    """The price at ``speed``: a listed speed's, else interpolated linearly between the two
+    listed speeds around it (a speed outside the listed ones has no price)."""
     if not isinstance(price, dict):
         return price
     for s, p in price.items():
         if math.isclose(s, speed, rel_tol=1e-9):
             return p
+    below = [s for s in price if s < speed]
+    above = [s for s in price if s > speed]
+    if below and above:
+        a, b = max(below), min(above)
+        return price[a] + (price[b] - price[a]) * (speed - a) / (b - a)
     known = ", ".join(f"{s:g}" for s in price)
     raise StudyError(f"--costs: {key} has no price for {speed:g} m/s; priced: {known}")
 
@@ -168,6 +211,97 @@ class Config:
         return float(costs["lost_part_cost"]) * lost_per_s * SECONDS_PER_HOUR * costs["hours"]
 
 
+def _field(sc: Scenario, path: str) -> Any:
+    """The value at a dotted path of a scenario (None where the path is not attributes)."""
+    obj: Any = sc
+    for part in path.split("."):
+        if not hasattr(obj, part):
+            return None
+        obj = getattr(obj, part)
+    return obj
+
+
+MAX_REPLICATIONS = 1000  # per configuration (a sweep's auto replications stop at 30 by default)
+MAX_CONFIGURATIONS = 10_000  # configurations one design may try, counted before expanding
+
+
+def looks(first: int, most: int) -> int:
+    """How many times one configuration's interval may be judged: after ``first``
+    replications, then after each doubling up to ``most``."""
+    n, count = first, 1
+    while n < most:
+        n, count = min(most, 2 * n), count + 1
+    return count
+
+
+def parse_grid(vary: Sequence[str]) -> dict[str, Any]:
+    """``--vary`` options as {path: values or range}; a path given twice is refused."""
+    grid: dict[str, Any] = {}
+    for spec in vary:
+        path, values = parse_vary(spec)
+        if path in grid:
+            raise StudyError(f"--vary {path}: given twice; give each field once")
+        grid[path] = values
+    return grid
+
+
+def check_design(
+    scenario: Scenario,
+    target: float,
+    vary: Sequence[str],
+    costs_file: Path | None = None,
+    confidence: float = 0.95,
+    first: int = 3,
+    most: int = 24,
+    trials: int = 30,
+) -> tuple[dict[str, Any], dict[str, list[Any] | Continuous], list[dict[str, Any]]]:
+    """Every check of a design's input, before anything is written: the costs, the varied
+    fields and the combinations of the discrete ones (a StudyError, one line, otherwise)."""
+    if not 0 < target <= 100:
+        raise StudyError(f"--target: {target:g} is not allowed; give a percentage in (0, 100]")
+    if not 0 < confidence < 1:
+        raise StudyError(f"--confidence: {confidence:g} is not allowed; give 0 < c < 1")
+    if not 2 <= first <= most or most > MAX_REPLICATIONS:
+        raise StudyError(
+            f"--replications {first}, --max-replications {most}: not allowed; give "
+            f"2 <= replications <= max-replications <= {MAX_REPLICATIONS}"
+        )
+    if scenario.feeder.arrival == "trace" and len(trace_files(scenario)) < 2:
+        raise StudyError(
+            "design: one replayed trace is one sample, so no interval can say a configuration "
+            "meets the target; give several traces (feeder.trace = a list or a folder) or add "
+            "--set feeder.arrival=poisson (or normal) for random arrivals at its mean rate"
+        )
+    costs = read_costs(costs_file)
+    grid = parse_grid(vary)
+    box = {p: r for p, r in grid.items() if isinstance(r, Continuous)}
+    if box and not 2 <= trials <= 1000:
+        raise StudyError(f"--trials: {trials} is not allowed; give 2 to 1000")
+    discrete = {p: v for p, v in grid.items() if isinstance(v, list)}
+    count = math.prod(len(v) for v in discrete.values()) * (trials if box else 1)
+    if count > MAX_CONFIGURATIONS:
+        raise StudyError(
+            f"--vary: {count:,} configurations to try; at most {MAX_CONFIGURATIONS:,}: vary "
+            "fewer fields or give fewer values"
+        )
+    combos = [dict(zip(discrete, c, strict=True)) for c in itertools.product(*discrete.values())]
+    corners = [{p: getattr(r, end) for p, r in box.items()} for end in ("low", "high")]
+    for values in combos:
+        for corner in corners if box else [{}]:
+            point = {**values, **corner}
+            try:
+                sc = with_overrides(scenario, point) if point else scenario
+            except ScenarioError as e:
+                raise StudyError(f"--vary {point}: {e}") from None
+            for path in box:
+                if isinstance(_field(sc, path), int) and not isinstance(_field(sc, path), bool):
+                    raise StudyError(
+                        f"--vary {path}: a whole-number field; give LO:HI without decimal points"
+                    )
+            capital(costs, sc)  # a price for every speed the search can reach
+    return costs, grid, combos
+
+
 def run_design(
     scenario: Scenario,
     out: Path,
@@ -182,31 +316,34 @@ def run_design(
     engine: str = "auto",
     command: str = "",
     progress: Callable[[int, int], None] | None = None,
+    trials: int = 30,
 ) -> dict[str, Any]:
     """Find the cheapest configuration meeting ``target`` (see the module docstring)."""
-    if not 0 < target <= 100:
-        raise StudyError(f"--target: {target:g} is not allowed; give a percentage in (0, 100]")
-    if not 0 < confidence < 1:
-        raise StudyError(f"--confidence: {confidence:g} is not allowed; give 0 < c < 1")
-    if not 2 <= first <= most:
-        raise StudyError(f"--replications: {first} (at most {most}) is not allowed; give >= 2")
+    costs, grid, combos = check_design(
+        scenario, target, vary, costs_file, confidence, first, most, trials
+    )
     t0 = time.perf_counter()
-    costs = read_costs(costs_file)
-    grid = dict(parse_vary(v) for v in vary)
+    box = {p: r for p, r in grid.items() if isinstance(r, Continuous)}
     rules = list(policies or [scenario.policy])
-    configs = []
-    for combo in itertools.product(*grid.values()):
-        values = dict(zip(grid, combo, strict=True))
+    groups: list[tuple[dict[str, Any], str]] = [(v, rule) for v in combos for rule in rules]
+    k = len(groups) * (trials if box else 1)
+    level = 1.0 - (1.0 - confidence) / (k * looks(first, most))
+    seeds = replication_seeds(scenario.seed, most)
+    simulated = replayed = 0
+    configs: list[Config] = []
+
+    def config(values: dict[str, Any], rule: str) -> Config:
+        values = {p: values[p] for p in grid}  # the order the fields were given in
+        for c in configs:
+            if c.policy == rule and c.values == values:
+                return c
         try:
             sc = with_overrides(scenario, values) if values else scenario
         except ScenarioError as e:
             raise StudyError(f"--vary {values}: {e}") from None
-        for rule in rules:
-            configs.append(Config(values, rule, sc, capital(costs, sc)))
-    k = len(configs)
-    level = 1.0 - (1.0 - confidence) / k
-    seeds = replication_seeds(scenario.seed, most)
-    simulated = replayed = 0
+        c = Config(values, rule, sc, capital(costs, sc))
+        configs.append(c)
+        return c
 
     def extend(todo: list[Config], n: int) -> None:
         nonlocal simulated, replayed
@@ -226,12 +363,34 @@ def run_design(
         if progress is not None:
             progress(sum(len(c.g) for c in configs), k * most)
 
+    def best_met() -> float:
+        met = [c for c in configs if _state(c, level, target) == "met"]
+        return min((c.capital + c.lost_cost(costs) for c in met), default=math.inf)
+
+    def decide(c: Config) -> None:
+        """Replications for one point, doubled while it is open and could be the cheapest."""
+        extend([c], max(first, len(c.g)))
+        while _state(c, level, target) == "open" and c.capital < best_met() and len(c.g) < most:
+            extend([c], min(most, 2 * len(c.g)))
+
+    if box:
+        for i, (values, rule) in enumerate(groups):
+            _optimise(
+                box,
+                trials,
+                scenario.seed + 7919 * i,
+                functools.partial(lambda v, r, point: config({**v, **point}, r), values, rule),
+                decide,
+                lambda c: (c.capital + c.lost_cost(costs), target - c.bounds(level)[1]),
+            )
+    else:
+        for values, rule in groups:
+            config(values, rule)
     extend(configs, first)
     rounds = [first]
     while True:
         state = {id(c): _state(c, level, target) for c in configs}
-        met = [c for c in configs if state[id(c)] == "met"]
-        best = min((c.capital + c.lost_cost(costs) for c in met), default=math.inf)
+        best = best_met()
         # open configurations that could still beat the cheapest met one (capital alone)
         todo = [c for c in configs if state[id(c)] == "open" and c.capital < best]
         todo = [c for c in todo if len(c.g) < most]
@@ -264,7 +423,12 @@ def run_design(
         "confidence": confidence,
         "confidence_each": level,
         "configurations": k,
-        "vary": {p: list(v) for p, v in grid.items()},
+        "evaluated": len(configs),
+        "vary": {
+            p: [v.low, v.high] if isinstance(v, Continuous) else list(v) for p, v in grid.items()
+        },
+        "continuous": list(box),
+        "trials": trials if box else None,
         "rules": rules,
         "costs": {
             k2: (v if not isinstance(v, dict) else {f"{s:g}": p for s, p in v.items()})
@@ -290,6 +454,42 @@ def run_design(
     result["text"] = design_text(result)
     write_json(result, Path(out) / SUMMARY_FILE, keep_nan=True)
     return result
+
+
+def _optimise(
+    box: Mapping[str, Continuous],
+    trials: int,
+    seed: int,
+    config: Callable[[dict[str, float]], Config],
+    decide: Callable[[Config], None],
+    score: Callable[[Config], tuple[float, float]],
+) -> None:
+    """Optuna's constrained TPE over the continuous box for one combination of the discrete
+    fields and rule: minimise the total cost subject to target - lower bound <= 0, in
+    ``trials`` points (asked and told here, so each point runs through ``decide``)."""
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # constraints_func and multivariate are experimental
+        sampler = optuna.samplers.TPESampler(
+            seed=seed,
+            n_startup_trials=max(2, min(10, trials // 3)),
+            multivariate=len(box) > 1,
+            constraints_func=lambda t: t.user_attrs["constraint"],
+        )
+        study = optuna.create_study(direction="minimize", sampler=sampler)
+        for _ in range(trials):
+            trial = study.ask()
+            point = {
+                p: min(r.high, max(r.low, _round(trial.suggest_float(p, r.low, r.high))))
+                for p, r in box.items()
+            }
+            c = config(point)
+            decide(c)
+            cost, gap = score(c)
+            trial.set_user_attr("constraint", [gap])
+            study.tell(trial, cost)
 
 
 def _state(c: Config, level: float, target: float) -> str:
@@ -323,15 +523,17 @@ def choice_text(choice: Mapping[str, Any]) -> str:
 def design_text(d: dict[str, Any]) -> str:
     """The answer in one sentence, with the next best for how much more."""
     conf = f"{100 * d['confidence']:g} %"
+    k, n = d["configurations"], d.get("evaluated", d["configurations"])
+    among = f"{k} configurations" if n == k else f"the {n} points evaluated (of {k} allowed)"
     if d["choice"] is None:
         return (
-            f"No configuration of the {d['configurations']} tried meets G ≥ {d['target']:g} % "
+            f"No configuration of the {n} tried meets G ≥ {d['target']:g} % "
             f"with {conf} confidence (after selecting among them)."
         )
     out = (
         f"{choice_text(d['choice'])}: G = {d['gripping_rate']:.1f} % "
         f"[{d['ci_low']:.1f}, {d['ci_high']:.1f}] meets G ≥ {d['target']:g} % with {conf} "
-        f"confidence after selecting among {d['configurations']} configurations; total cost "
+        f"confidence after selecting among {among}; total cost "
         f"{d['total_cost']:,.0f}"
     )
     other = [

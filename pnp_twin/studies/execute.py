@@ -13,6 +13,7 @@ from pnp_twin.policies import make_policy
 from pnp_twin.studies.plan import RunSpec
 from pnp_twin.twin.kpis import flat_kpis
 from pnp_twin.twin.run import RunResult, simulate
+from pnp_twin.twin.trace import for_replication
 
 ID_COLUMNS = ("run_id", "point", "policy", "replication", "seed")
 DROPPED = ("policy", "seed")  # flat_kpis repeats these; the row already has them
@@ -26,11 +27,10 @@ def cell(value: Any) -> Any:
 
 
 def simulate_spec(spec: RunSpec) -> RunResult:
-    """Simulate one run of a study."""
+    """Simulate one run of a study (with several traces, replication k replays trace k)."""
     policy = make_policy(spec.policy, spec.scenario.robots.count)
-    return simulate(
-        spec.scenario, policy, seed=spec.seed, policy_name=spec.policy, engine=spec.engine
-    )
+    scenario = for_replication(spec.scenario, spec.replication)  # trace k in replication k
+    return simulate(scenario, policy, seed=spec.seed, policy_name=spec.policy, engine=spec.engine)
 
 
 def execute(spec: RunSpec) -> dict[str, Any]:

@@ -25,7 +25,7 @@ from pnp_twin.studies.summary import (
 )
 from pnp_twin.twin.output import versions, write_json, write_table
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.trace import check_replay, gap_stats
+from pnp_twin.twin.trace import check_replays, gap_stats
 
 PACKAGES = ("pnp-twin", "simpy", "numpy", "pandas", "plotly")  # what a result depends on
 
@@ -132,12 +132,20 @@ def meta(plan: StudyPlan, kind: str, **extra: Any) -> dict[str, Any]:
 
 
 def trace_info(scenario: Scenario) -> dict[str, Any]:
-    """``{"trace": {file, parts, mean_rate, cv}}`` for a scenario that replays a trace (the
-    rate the report states: a trace ignores ``feeder.rate``), else {}."""
-    trace = check_replay(scenario)
-    if trace is None:
+    """``{"trace": {file, parts, mean_rate, cv, traces[, files]}}`` for a scenario that
+    replays a trace or several (the rate the report states: a trace ignores ``feeder.rate``;
+    with several, their gaps pooled), else {}."""
+    traces = check_replays(scenario)
+    if not traces:
         return {}
-    rate, cv = gap_stats(trace)
-    return {
-        "trace": {"file": trace.path.name, "parts": len(trace.times), "mean_rate": rate, "cv": cv}
+    rate, cv = gap_stats(traces)
+    info: dict[str, Any] = {
+        "file": traces[0].path.name if len(traces) == 1 else f"{len(traces)} traces",
+        "parts": sum(len(t.times) for t in traces),
+        "mean_rate": rate,
+        "cv": cv,
+        "traces": len(traces),
     }
+    if len(traces) > 1:
+        info["files"] = [t.path.name for t in traces]
+    return {"trace": info}

@@ -114,6 +114,7 @@ class Headroom:
     lookahead: Entry
     bound: Entry
     tuning_seeds: list[int] = field(default_factory=list)
+    part_flow: float | None = None  # parts/s presented, measured (the best rule's runs)
 
     @property
     def entries(self) -> list[Entry]:
@@ -134,6 +135,7 @@ class Headroom:
             "confidence": s.confidence,
             "answer": answer(self),
             "note": BOUND_NOTE,
+            "part_flow": self.part_flow,
             "best_rule": self.best_rule.row(),
             "best_mix": {**self.best_mix.row(), "tuning_seeds": self.tuning_seeds},
             "policies": [e.row() for e in self.policies],
@@ -165,14 +167,15 @@ def check_policies(scenario: Scenario, settings: HeadroomSettings) -> None:
         )
 
 
-def _one(job: tuple[Scenario, str, int, str]) -> tuple[float, float | None]:
-    """Gripping rate of one run (and the policy's CPU ms per decision when it reports it)."""
+def _one(job: tuple[Scenario, str, int, str]) -> tuple[float, float | None, float]:
+    """Gripping rate of one run, the policy's CPU ms per decision when it reports it, and
+    the part flow measured over the window (parts presented per second)."""
     scenario, spec, seed, engine = job
     policy = make_policy(spec, scenario.robots.count)
     result = simulate(scenario, policy, seed=seed, engine=engine)
     stats = getattr(policy, "stats", None)
     cpu = float(stats()["cpu_ms_per_decision"]) if callable(stats) else None
-    return float(result.kpis["gripping_rate"]), cpu
+    return float(result.kpis["gripping_rate"]), cpu, float(result.kpis["part_flow"])
 
 
 Progress = Callable[[str, int, int], None]
@@ -184,8 +187,9 @@ def _rates(
     seeds: Sequence[int],
     settings: HeadroomSettings,
     progress: Progress | None = None,
-) -> tuple[list[float], float | None]:
-    """Gripping rate per seed (in ``settings.workers`` processes) and mean CPU per decision."""
+) -> tuple[list[float], float | None, float]:
+    """Gripping rate per seed (in ``settings.workers`` processes), mean CPU per decision
+    and mean measured part flow."""
     from pnp_twin.parallel import pool_map_ordered
 
     jobs = [(scenario, spec, s, settings.engine) for s in seeds]
@@ -204,8 +208,9 @@ def _rates(
         for job in jobs:
             out.append(_one(job))
             tick(None)
-    cpus = [c for _, c in out if c is not None]
-    return [g for g, _ in out], (float(np.mean(cpus)) if cpus else None)
+    cpus = [c for _, c, _ in out if c is not None]
+    flow = float(np.mean([f for _, _, f in out]))
+    return [g for g, _, _ in out], (float(np.mean(cpus)) if cpus else None), flow
 
 
 def search_mix(
@@ -256,8 +261,9 @@ def run_headroom(
     seeds = settings.seed_list
     c = settings.confidence
     raw: dict[str, list[float]] = {}
+    flows: dict[str, float] = {}
     for rule in RULES:
-        raw[rule] = _rates(scenario, rule, seeds, settings, progress)[0]
+        raw[rule], _, flows[rule] = _rates(scenario, rule, seeds, settings, progress)
     best = max(RULES, key=lambda r: (float(np.mean(raw[r])), -list(RULES).index(r)))
     ref = raw[best]
     rules = [_entry("rule", r, raw[r], ref, c) for r in RULES]
@@ -267,19 +273,19 @@ def run_headroom(
     best_mix = _entry("best_mix", mix, mix_values, ref, c)
     policies = []
     for spec in settings.policies:
-        values, cpu = _rates(scenario, spec, seeds, settings, progress)
+        values, cpu, _ = _rates(scenario, spec, seeds, settings, progress)
         policies.append(_entry("policy", spec, values, ref, c))
         policies[-1].cpu_ms_per_decision = cpu
     found = {}
     for role, spec in (("lookahead", settings.lookahead), ("bound", settings.bound)):
-        values, cpu = _rates(scenario, spec, seeds, settings, progress)
+        values, cpu, _ = _rates(scenario, spec, seeds, settings, progress)
         name = str(getattr(make_policy(spec), "name", spec))  # lookahead: K=16,H=1,base=auto
         found[role] = _entry(role, name, values, ref, c)
         found[role].cpu_ms_per_decision = cpu
     tuning = [] if settings.mix else [TUNING_SEED_BASE + i for i in range(settings.tuning_seeds)]
     return Headroom(
         scenario, settings, rules, best_rule, best_mix, policies, found["lookahead"],
-        found["bound"], tuning,
+        found["bound"], tuning, flows[best],
     )  # fmt: skip
 
 
@@ -291,9 +297,9 @@ def answer(h: Headroom) -> str:
     """The study's answer in one sentence (points over the best rule, with the paired 95 %
     intervals, and what the lookahead's gain is worth in parts per hour)."""
     sc, b, la, bound = h.scenario, h.best_rule, h.lookahead, h.bound
-    flow = _part_flow(sc)
+    flow = h.part_flow
     worth = ""
-    if flow is not None and math.isfinite(la.gain):
+    if flow is not None and math.isfinite(flow) and math.isfinite(la.gain):
         worth = f", worth {la.gain / 100.0 * flow * 3600.0:+,.0f} parts an hour gripped"
     sure = "above zero" if la.gain_ci_low > 0 else "not surely above zero"
     extra = "".join(f"; {e.policy} gets {_points(e)}" for e in h.policies)
@@ -304,9 +310,3 @@ def answer(h: Headroom) -> str:
         f"{h.best_mix.policy} gets {_points(h.best_mix)}{extra}."
     )
 
-
-def _part_flow(sc: Scenario) -> float | None:
-    """Parts per second fed (None for a trace, whose flow the run measures)."""
-    if sc.feeder.arrival == "trace":
-        return None
-    return float(sc.feeder.rate)

@@ -2,9 +2,10 @@
 
 Finished runs are journaled by the coordinating process as results arrive, as JSON lines
 appended to segment files ``DIR/runs/NNNNNN.jsonl`` (one segment per session, never
-appended to by another): rows are buffered and written in batches, each batch flushed and
-fsynced (at most every half second, and always before the tables are built, when the
-session closes, on Ctrl-C, and before a fresh start deletes the study it replaced), so an
+appended to by another): a row that comes after a quiet half second is written and fsynced
+at once; rows that come faster are buffered and written together by a timer at most half a
+second after the first of them (and always before the tables are built, when the session
+closes, on Ctrl-C, and before a fresh start deletes the study it replaced), so an
 interrupted study (Ctrl-C, a killed process) loses at most the runs of its last half second.
 ``DIR/study.json`` holds the study definition: re-running the same command skips finished
 runs; a different definition in the same folder is refused (naming the fields that changed)
@@ -33,6 +34,7 @@ import math
 import os
 import re
 import shutil
+import threading
 import time
 from collections.abc import Iterable, Mapping
 from functools import lru_cache
@@ -168,7 +170,9 @@ class Journal:
         self.replaced = self.folder / REPLACED
         self._found: dict[str, tuple[Any, str]] | None = None  # run_id -> (row, where)
         self._pending: list[str] = []  # JSON lines recorded, not yet written
-        self._since = 0.0  # monotonic time of the oldest pending line
+        self._flushed_at = -math.inf  # monotonic time of the last write
+        self._guard = threading.RLock()  # the timer's flush and record() share the buffer
+        self._timer: threading.Timer | None = None  # writes a batch FLUSH_SECONDS after it starts
         self._segment: Path | None = None  # this session's segment, once it has one
         self._lines = 0  # lines written to it
         self.lock = StudyLock(self.folder)
@@ -278,6 +282,8 @@ class Journal:
     def close(self) -> None:
         """Write the rows still buffered and release the folder's lock."""
         try:
+            if self._timer is not None:
+                self._timer.cancel()
             self.flush()
         finally:
             self.lock.release()
@@ -361,8 +367,13 @@ class Journal:
 
     def flush(self) -> None:
         """Append the buffered rows to this session's segment and fsync it."""
-        if not self._pending:
-            return
+        with self._guard:
+            self._timer = None
+            if self._pending:
+                self._write_pending()
+            self._flushed_at = time.monotonic()
+
+    def _write_pending(self) -> None:
         segment = self._session_segment()
         created = not segment.exists()
         text = "".join(self._pending).encode("utf-8")
@@ -393,13 +404,19 @@ class Journal:
         its batch (see the module docstring)."""
         line = _dumps_row(row)
         found = self._read()
-        if not self._pending:
-            self._since = time.monotonic()
-        self._pending.append(line)
-        where = f"{self._session_segment()} line {self._lines + len(self._pending)}"
-        found[str(row["run_id"])] = (json.loads(line), where)
-        if len(self._pending) >= FLUSH_ROWS or time.monotonic() - self._since >= FLUSH_SECONDS:
-            self.flush()
+        with self._guard:
+            self._pending.append(line)
+            where = f"{self._session_segment()} line {self._lines + len(self._pending)}"
+            found[str(row["run_id"])] = (json.loads(line), where)
+            quiet = time.monotonic() - self._flushed_at >= FLUSH_SECONDS
+            if quiet or len(self._pending) >= FLUSH_ROWS:
+                if self._timer is not None:
+                    self._timer.cancel()
+                self.flush()
+            elif self._timer is None:
+                self._timer = threading.Timer(FLUSH_SECONDS, self.flush)
+                self._timer.daemon = True
+                self._timer.start()
 
     def load(self, spec: RunSpec) -> dict[str, Any] | None:
         """``spec``'s journaled row, checked; None if not run yet (or its line was damaged)."""

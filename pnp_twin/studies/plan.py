@@ -24,7 +24,7 @@ from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.twin.errors import UserError, excerpt
 from pnp_twin.twin.loader import ScenarioError, with_overrides
 from pnp_twin.twin.scenario import Scenario, SweepConfig, duplicate_policy, repeated_value
-from pnp_twin.twin.trace import check_replay
+from pnp_twin.twin.trace import check_replay, trace_files
 
 RESERVED = {
     "sweep": "the study itself cannot be swept",
@@ -216,9 +216,10 @@ def build_plan(
         try:
             sc = with_overrides(resolved, point)
             if point and sc.feeder.arrival == "trace":
-                check_replay(sc)  # each point's duration must stay inside the trace
+                check_replay(sc)  # each point's duration must stay inside every trace
         except ScenarioError as e:
             raise StudyError(_point_error(point, str(e))) from None
+        _check_traces(sc, reps, precision)
         for name in policies:
             try:
                 make_policy(name, sc.robots.count)
@@ -235,6 +236,22 @@ def build_plan(
         scenarios=tuple(scenarios),
         precision=precision,
     )
+
+
+def _check_traces(sc: Scenario, reps: int, precision: Precision | None) -> None:
+    """With several traces replication k replays trace k: a study may run at most as many
+    replications as there are traces (one line otherwise)."""
+    try:
+        files = trace_files(sc)
+    except ScenarioError as e:
+        raise StudyError(f"sweep: {e}") from None
+    most = precision.max_replications if precision else reps
+    if len(files) > 1 and most > len(files):
+        which = "--max-replications" if precision else "--replications"
+        raise StudyError(
+            f"{which}: {most}, but feeder.trace names {len(files)} traces and replication k "
+            f"replays trace k; give {which} {len(files)} or fewer, or more traces"
+        )
 
 
 def _replications(

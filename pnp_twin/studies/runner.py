@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.backends import run_specs
+from pnp_twin.studies.costing import study_costs
 from pnp_twin.studies.folder import (
     Tables,
     build_tables,
@@ -50,6 +51,8 @@ class Options:
     command: str = ""
     confidence: float = 0.95
     engine: str = "auto"  # simulation engine of every run (results are identical)
+    costs: dict[str, Any] | None = None  # --costs: prices (studies.design.read_costs)
+    costs_file: str = ""
 
 
 @dataclass
@@ -219,6 +222,9 @@ def finish(
     write_tables(folder, tables)
     write_records(folder, replace(representative(plan, tables.best), engine=session.options.engine))
     extra = {**session.meta_extra(), **(extra_meta or {})}
+    o = session.options
+    if o.costs is not None:  # an analysis setting: what each point x policy costs
+        extra["costs"] = study_costs(plan, tables, o.costs, o.costs_file)
     write_json(meta(plan, kind, **extra), folder / "meta.json", keep_nan=True)
     session.journal.started()
     session.close()

@@ -334,6 +334,15 @@ CASES: dict[str, Case] = {
     "headroom of a missing file": Case(
         ["headroom", "nothere.toml", "--out", "o"], ["nothere.toml"]
     ),
+    "task score of an unknown task": Case(
+        ["task", "score", "nosuch", "--policy", "SD"], ["nosuch", "baseline"]
+    ),
+    "task score with one seed": Case(
+        ["task", "score", "baseline", "--policy", "SD", "--seeds", "1"], ["--seeds", "2 to 20"]
+    ),
+    "task score of an unknown policy": Case(
+        ["task", "score", "baseline", "--policy", "NOPE"], ["NOPE"]
+    ),
     # --- study folders: report, export -------------------------------------------------------
     "report of a missing folder": Case(["report", "nothere"], ["nothere"]),
     "report of a file": Case(["report", "f.txt"], ["f.txt"], {"f.txt": "keep"}),

@@ -359,7 +359,7 @@ def test_the_what_if_panel_shows_the_stored_g_in_a_browser(failures: Path) -> No
     row = summary[summary["robots.mtbf"] == 20.0].iloc[0]
     want = (
         f"G = {row['gripping_rate_mean']:.1f} % (95 % CI {row['gripping_rate_ci_low']:.1f} "
-        f"to {row['gripping_rate_ci_high']:.1f} %)"
+        f"to {row['gripping_rate_ci_high']:.1f} %) · no cost file"  # sweep without --costs
     )
     args = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
     with sync_api.sync_playwright() as p:
@@ -392,4 +392,5 @@ def test_a_trace_beside_random_arrivals_at_its_mean_rate_says_what_bursts_cost(
     g = study.best.set_index("feeder.arrival")["gripping_rate_mean"]
     said = next(s for s in key_findings(study) if s.startswith("Bursts cost"))
     assert said.startswith(f"Bursts cost {g['poisson'] - g['trace']:.1f} points")
-    assert "one replayed trace" not in headline(study)  # random arrivals do vary
+    assert not layout.one_trace(study.meta)  # random arrivals do vary: not one sample
+    assert "(one replayed trace: no interval)" in headline(study)  # the trace point has none

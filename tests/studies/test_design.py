@@ -101,7 +101,7 @@ def test_vary_and_cost_file_mistakes_are_one_line(tmp_path: Path) -> None:
     with pytest.raises(StudyError, match="not a scenario field"):
         parse_vary("robots.arm_sped=3,4")
     with pytest.raises(StudyError, match="whole numbers"):
-        parse_vary("robots.arm_speed=2.5:4")
+        parse_vary("robots.count=2:x")
     bad = tmp_path / "c.toml"
     bad.write_text("robot_price = 1\nbelt_price = 1\nhours = 1\n")
     with pytest.raises(StudyError, match="lost_part_cost is missing"):
@@ -109,3 +109,14 @@ def test_vary_and_cost_file_mistakes_are_one_line(tmp_path: Path) -> None:
     bad.write_text("robot_price = -1\nbelt_price = 1\nhours = 1\nlost_part_cost = 0\n")
     with pytest.raises(StudyError, match="must be a number >= 0"):
         read_costs(bad)
+
+
+def test_each_look_at_an_interval_is_paid_for(designed: tuple[Path, dict]) -> None:
+    """Judging a configuration after 3, 6 and 12 replications and stopping at the first
+    crossing is three looks: each interval is taken at 1 - 0.05 / (K x 3), K = 5 counts x
+    2 speeds x 2 rules, so the pick keeps 95 % after the sequential rounds too."""
+    from pnp_twin.studies.design import looks
+
+    assert [looks(3, 3), looks(3, 6), looks(3, 12), looks(3, 24), looks(5, 30)] == [1, 2, 3, 4, 4]
+    _, d = designed
+    assert d["confidence_each"] == pytest.approx(1 - 0.05 / (5 * 2 * 2 * looks(3, 12)))

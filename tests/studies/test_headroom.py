@@ -46,6 +46,10 @@ def test_json_keys_and_interval_order(study: tuple[Path, dict]) -> None:
     assert data["best_mix"]["policy"] == "SD,SPT,SD,SD"
     assert [p["policy"] for p in data["policies"]] == ["FIFO"]
     assert data["seeds"] == [0, 1, 2]
+    # what the gain is worth is counted on the flow the runs measured, not feeder.rate
+    assert 9.0 < data["part_flow"] < 11.0 and data["part_flow"] != 10.0
+    worth = data["lookahead"]["gain"] / 100 * data["part_flow"] * 3600
+    assert f"worth {worth:+,.0f} parts an hour" in data["answer"]
     assert "one-step lookahead with rule continuations" in data["note"]
     assert (
         data["answer"].startswith("On paper_baseline the best rule") and "\n" not in data["answer"]

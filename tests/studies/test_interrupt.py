@@ -138,3 +138,28 @@ def test_a_killed_size_study_resumes_to_the_same_answer(reference, tmp_path):
     assert_same_tables(out, reference / "size")
     sizing = json.loads((out / "sizing.json").read_text())
     assert sizing == json.loads((reference / "size" / "sizing.json").read_text())
+
+
+def test_a_terminated_sweep_writes_its_finished_runs_and_resumes(reference, tmp_path):
+    """SIGTERM (kill, timeout, a scheduler) ends a study as Ctrl-C does: exit 143 with one
+    line, every run finished so far on disk, the folder let go, no process left."""
+    out = tmp_path / "sweep"
+    study = cli(SWEEP, out)
+    try:
+        deadline = time.monotonic() + 120
+        while journaled(out) < 2 and study.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert study.poll() is None, "the study ended before it could be stopped"
+        study.send_signal(signal.SIGTERM)
+        _, err = study.communicate(timeout=60)
+    finally:
+        for pid in session_members(study.pid):
+            os.kill(pid, signal.SIGKILL)
+    assert study.returncode == 143
+    assert err.decode().strip().splitlines()[-1] == "error: terminated"  # after the bar
+    assert not (out / ".study.lock.json").exists()
+    on_disk = journaled(out)
+    assert on_disk >= 2
+    meta = resume(SWEEP, out)
+    assert meta["runs_skipped"] == on_disk and meta["runs_executed"] == 12 - on_disk
+    assert_same_tables(out, reference / "sweep")
