@@ -23,12 +23,19 @@ from pnp_twin.twin.output import dumps_json
 task_app = typer.Typer(
     name="task",
     help="The task suite: list the tasks, score a policy on one.",
-    no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
     rich_markup_mode=None,
 )
 app.add_typer(task_app, name="task")
+
+
+@task_app.callback(invoke_without_command=True)
+def task_root(ctx: typer.Context) -> None:
+    """The task suite: list the tasks, score a policy on one."""
+    if ctx.invoked_subcommand is None:  # bare `pnp-twin task`: show what it can do
+        typer.echo(ctx.get_help())
+        raise typer.Exit()
 
 
 @task_app.command("list")
