@@ -9,8 +9,6 @@ already simulated (``DIR/evals/``) and simulates only the new ones.
 from __future__ import annotations
 
 import os
-import shlex
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -19,12 +17,12 @@ import typer
 from pnp_twin.cli.app import ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note
 from pnp_twin.cli.run_cmd import Engine
+from pnp_twin.cli.study_folder import check_policies, run_locked
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.capacity import SUMMARY_FILE, check_capacity, run_capacity
-from pnp_twin.studies.lock import StudyLock
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
-from pnp_twin.twin.output import check_out_folder, dumps_json
+from pnp_twin.twin.output import dumps_json
 
 OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
 
@@ -64,12 +62,12 @@ def capacity_cmd(
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; give a folder")
     check_capacity(sc, target, confidence, replications, vary or [], start)  # before the folder
-    check_out_folder(out, {"scenario file": find_scenario(scenario)}, OURS)
-    command = shlex.join(["pnp-twin", *sys.argv[1:]])
-    lock = StudyLock(out)
-    lock.acquire(command)
-    try:
-        result = run_capacity(
+    check_policies(policy or [sc.policy], sc.robots.count)
+    result = run_locked(
+        out,
+        {"scenario file": find_scenario(scenario)},
+        OURS,
+        lambda cmd: run_capacity(
             sc,
             out,
             target,
@@ -79,11 +77,10 @@ def capacity_cmd(
             workers or (os.cpu_count() or 1),
             engine.value,
             start,
-            command,
+            cmd,
             vary=vary or [],
-        )
-    finally:
-        lock.release()
+        ),
+    )
     if not no_report:
         from pnp_twin.reports.capacity import build_capacity_report
 

@@ -9,8 +9,6 @@ confidence or cost file reuses every journalled run (``DIR/evals/``).
 from __future__ import annotations
 
 import os
-import shlex
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -19,12 +17,12 @@ import typer
 from pnp_twin.cli.app import ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note
 from pnp_twin.cli.run_cmd import Engine
+from pnp_twin.cli.study_folder import check_policies, run_locked
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.design import SUMMARY_FILE, check_design, run_design
-from pnp_twin.studies.lock import StudyLock
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
-from pnp_twin.twin.output import check_out_folder, dumps_json
+from pnp_twin.twin.output import dumps_json
 
 OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
 
@@ -75,12 +73,12 @@ def design_cmd(
     check_design(
         sc, target, vary or [], costs, confidence, replications, max_replications, trials
     )  # every mistake is one line before the folder exists
-    check_out_folder(out, {"scenario file": find_scenario(scenario), "costs": costs}, OURS)
-    command = shlex.join(["pnp-twin", *sys.argv[1:]])
-    lock = StudyLock(out)
-    lock.acquire(command)
-    try:
-        result = run_design(
+    check_policies(policy or [sc.policy], sc.robots.count)
+    result = run_locked(
+        out,
+        {"scenario file": find_scenario(scenario), "costs": costs},
+        OURS,
+        lambda cmd: run_design(
             sc,
             out,
             target,
@@ -92,11 +90,10 @@ def design_cmd(
             max_replications,
             workers or (os.cpu_count() or 1),
             engine.value,
-            command,
+            cmd,
             trials=trials,
-        )
-    finally:
-        lock.release()
+        ),
+    )
     if not no_report:
         from pnp_twin.reports.design import build_design_report
 

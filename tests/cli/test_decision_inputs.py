@@ -20,6 +20,11 @@ CASES = [
     ),
     (["capacity", "two_robot", "--target", "90", "--start", "nan"], "--start: nan"),
     (["capacity", "two_robot", "--target", "50", "-r", "100000000"], "give 2 to 1000"),
+    (["capacity", "two_robot", "--target", "50", "-p", "FOO"], "'FOO' is not a rule"),
+    (
+        ["design", "two_robot", "--target", "50", "--vary", "robots.count=1:2", "-p", "FOO"],
+        "'FOO' is not a rule",
+    ),
     (
         ["design", "two_robot", "--target", "50", "--vary", "robots.count=1:2",
          "--max-replications", "100000000"],

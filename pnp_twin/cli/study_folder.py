@@ -1,0 +1,41 @@
+"""What every study-like command (``design``, ``capacity``) does around its work: check the
+policies and the output folder before anything is written, then run holding the folder's
+lock."""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+from typing import TypeVar
+
+from pnp_twin.policies import make_policy
+from pnp_twin.studies.lock import StudyLock
+from pnp_twin.twin.output import check_out_folder
+
+T = TypeVar("T")
+
+
+def check_policies(policies: Iterable[str], n_robots: int) -> None:
+    """Each policy spec builds for the line (a PolicyError, one line, otherwise)."""
+    for spec in policies:
+        make_policy(spec, n_robots)
+
+
+def run_locked(
+    out: Path,
+    inputs: Mapping[str, str | Path | None],
+    ours: Iterable[str],
+    work: Callable[[str], T],
+) -> T:
+    """Check ``out`` (new, empty or one of ours; holding none of ``inputs``), then run
+    ``work(command)`` with the folder locked under the command line that asked."""
+    check_out_folder(out, inputs, ours)
+    command = shlex.join(["pnp-twin", *sys.argv[1:]])
+    lock = StudyLock(out)
+    lock.acquire(command)
+    try:
+        return work(command)
+    finally:
+        lock.release()
