@@ -70,6 +70,15 @@ class ObservationView:
         return obs.repeat(s, axis=1).repeat(s, axis=2) * np.uint8(255)
 
 
+def agent_observation_space(view: ObservationView, k: int, with_mask: bool) -> spaces.Space[Any]:
+    """One agent's observation space: its window, or with ``with_mask`` PettingZoo's
+    ``{"observation", "action_mask"}`` dict (the mask over the ``k`` rules)."""
+    if not with_mask:
+        return view.space
+    mask = spaces.Box(0, 1, (k,), dtype=np.int8)
+    return spaces.Dict({"observation": view.space, "action_mask": mask})
+
+
 def check_render_mode(mode: str | None, allowed: Sequence[str]) -> str | None:
     if mode is not None and mode not in allowed:
         raise EnvError(f"render_mode: {mode!r} is not allowed; use None or {', '.join(allowed)}")

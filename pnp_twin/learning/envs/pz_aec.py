@@ -13,6 +13,7 @@ from pettingzoo import AECEnv
 from pnp_twin.learning.envs.common import (
     EpisodeLimits,
     ObservationView,
+    agent_observation_space,
     check_render_mode,
     line_seed,
     render_line,
@@ -144,14 +145,7 @@ class PickPlaceAEC(AECEnv[str, np.ndarray, int]):
         camera = self.driver.camera
         self.view = ObservationView(opts.observation, camera.window_shape)
         k = len(self.rules)
-        self._observation_space: spaces.Space[Any] = self.view.space
-        if opts.mask_in_observation:
-            self._observation_space = spaces.Dict(
-                {
-                    "observation": self.view.space,
-                    "action_mask": spaces.Box(0, 1, (k,), dtype=np.int8),
-                }
-            )
+        self._observation_space = agent_observation_space(self.view, k, opts.mask_in_observation)
         self._action_space: spaces.Discrete = spaces.Discrete(k)
         self.state_space = spaces.Box(0, 1, camera.shape, dtype=np.uint8)
         self.agents: list[str] = []
