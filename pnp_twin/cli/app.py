@@ -31,6 +31,7 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM (``kill``, ``timeout``, a job scheduler): unwinds like Ctrl-C, so a study
     writes its buffered journal rows and lets go of its folder before it ends."""
 
+
 # Arguments and options shared by the command modules.
 ScenarioArg = Annotated[
     str,
@@ -46,6 +47,16 @@ SetOpt = Annotated[
         "--set",
         metavar="PATH=VALUE",
         help="Override a scenario field, e.g. --set robots.arm_speed=4 (repeatable).",
+    ),
+]
+WorkersOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--workers",
+        "-w",
+        min=1,
+        max=1024,
+        help="Parallel runs (1 = in-process). Default: CPU count.",
     ),
 ]
 

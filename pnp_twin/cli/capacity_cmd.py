@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.cli.app import ScenarioArg, SetOpt, WorkersOpt, app
 from pnp_twin.cli.console import note
 from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.cli.study_folder import check_policies, run_locked
@@ -52,7 +52,7 @@ def capacity_cmd(
         float | None, typer.Option("--start", help="First flow tried, parts/s (feeder.rate).")
     ] = None,
     sets: SetOpt = None,
-    workers: Annotated[int | None, typer.Option("--workers", "-w", min=1, max=1024)] = None,
+    workers: WorkersOpt = None,
     engine: Annotated[Engine, typer.Option("--engine", help="auto, fast or simpy.")] = Engine.auto,
     no_report: Annotated[bool, typer.Option("--no-report", help="No report.html.")] = False,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,

@@ -36,7 +36,7 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
-from pnp_twin.cli.app import SetOpt, app
+from pnp_twin.cli.app import SetOpt, WorkersOpt, app
 from pnp_twin.cli.console import note, stderr_console, stdout_console
 from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.studies import Options, build_plan, run_sweep
@@ -81,16 +81,6 @@ OutOpt = Annotated[
     Path,
     typer.Option(
         "--out", "-o", help="Study folder (created; rerun to resume).", show_default=False
-    ),
-]
-WorkersOpt = Annotated[
-    int | None,
-    typer.Option(
-        "--workers",
-        "-w",
-        min=1,
-        max=1024,
-        help="Parallel runs (1 = in-process). Default: CPU count.",
     ),
 ]
 BackendOpt = Annotated[Backend, typer.Option("--backend", help="local process pool or ray.")]
