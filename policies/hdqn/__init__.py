@@ -2,7 +2,8 @@
 
 Inference only: ``network`` (Q-network presets), ``agent`` (the online network and its greedy
 action), ``numpy_forward`` (the same network's forward pass in numpy, for decisions),
-``checkpoint`` (reading safetensors + JSON), ``policy`` (the trained policy used like any
+``checkpoint`` (reading safetensors + JSON), ``features`` (the decision features a student
+of the lookahead controller sees besides the image), ``policy`` (the trained policy used like any
 other, :class:`pnp_twin.policies.hdqn.policy.HDQNPolicy`, ``--policy hdqn:DIR``). Training
 (target network, optimizer, semi-MDP update, replay, writing checkpoints) lives in
 :mod:`pnp_twin.learning` (``dqn_update``, ``replay``, ``train_checkpoint``, ``train``).

@@ -35,6 +35,7 @@ from safetensors.torch import load_file
 
 from pnp_twin.policies.hdqn import MODES
 from pnp_twin.policies.hdqn.agent import AgentConfig, QAgent
+from pnp_twin.policies.hdqn.features import size as feature_size
 from pnp_twin.policies.hdqn.network import PRESETS
 from pnp_twin.policies.registry import rule_names
 from pnp_twin.twin.errors import UserError, file_kind
@@ -89,7 +90,9 @@ class Meta(_Strict):
     mode: Literal[MODES]  # type: ignore[valid-type]
     view: Literal["window", "belt"] | None = None
     termination: Literal["t_continue", "t_all", "t_any"] | None = None
-    targets: Literal["td", "rollout"] | None = None
+    targets: Literal["td", "rollout", "teacher"] | None = None
+    features: str | None = None
+    """The decision features after the one-hot (:mod:`policies.hdqn.features`), or None."""
     rules: list[str]
     n_robots: Annotated[int, Field(ge=1, le=64)]
     scenario: dict[str, Any]
@@ -101,7 +104,7 @@ class Meta(_Strict):
         list[Annotated[int, Field(ge=1, le=4096)]], Field(min_length=3, max_length=3)
     ]
     n_actions: Annotated[int, Field(ge=1, le=MAX_ACTIONS)]
-    n_extra: Annotated[int, Field(ge=0, le=64)]
+    n_extra: Annotated[int, Field(ge=0, le=256)]
     agent: AgentMeta
     updates: Annotated[int, Field(ge=0)] = 0
     optimizer_groups: list[dict[str, Any]] = Field(default_factory=list)
@@ -140,7 +143,17 @@ class Meta(_Strict):
                 f"n_actions: {self.n_actions} does not fit {k} rules and {self.n_robots} "
                 f"robots in {self.mode} mode (expected {want})"
             )
-        if self.n_extra not in (0, self.n_robots):
+        if self.features is not None:
+            try:
+                want_extra = feature_size(self.features, k, self.n_robots)
+            except ValueError as e:
+                raise ValueError(str(e)) from None
+            if self.n_extra != want_extra:
+                raise ValueError(
+                    f"n_extra: {self.n_extra} does not match the features '{self.features}' "
+                    f"of {k} rules and {self.n_robots} robots (expected {want_extra})"
+                )
+        elif self.n_extra not in (0, self.n_robots):
             raise ValueError(
                 f"n_extra: {self.n_extra} does not match n_robots = {self.n_robots} (its network "
                 f"takes extra inputs of {self.n_extra} robots; allowed 0 or {self.n_robots}); "

@@ -91,10 +91,18 @@ def pooled(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) ->
     return QNetwork(obs_shape, n_actions, n_extra, [], (128,), trunk)
 
 
+def student(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -> QNetwork:
+    """The lookahead's student: the flattened image and the decision features, two FC layers
+    of 64 ReLUs. Small enough for the numpy forward pass (a decision in tens of microseconds).
+    """
+    return QNetwork(obs_shape, n_actions, n_extra, [], (64, 64))
+
+
 PRESETS: dict[str, Callable[[tuple[int, int, int], int, int], QNetwork]] = {
     "paper": paper,
     "compact": compact,
     "pooled": pooled,
+    "student": student,
 }
 """Network preset name -> builder ``(obs_shape, n_actions, n_extra) -> QNetwork``."""
 

@@ -24,6 +24,7 @@ from pnp_twin.policies.hdqn.checkpoint import (
     resolve,
     warn_if_other_line,
 )
+from pnp_twin.policies.hdqn.features import DecisionFeatures
 from pnp_twin.policies.hdqn.numpy_forward import NumpyQ, Unsupported
 from pnp_twin.twin.belt import Belt
 from pnp_twin.twin.camera import BeltCamera
@@ -84,6 +85,10 @@ class HDQNPolicy(RuleChoosingPolicy):
         self.numpy_forward = numpy_forward
         self._numpy: NumpyQ | None = None
         self.torch_decisions = 0  # decisions torch ranked (near ties, or no numpy forward)
+        # a student of the lookahead controller also sees decision features (its extras)
+        features = meta.get("features")
+        self.features = None if features is None else DecisionFeatures(features, self.rules)
+        self._rate: float | None = None
 
     @classmethod
     def load(cls, folder: str | Path, device: str = "cpu") -> HDQNPolicy:
@@ -105,6 +110,9 @@ class HDQNPolicy(RuleChoosingPolicy):
 
     def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
         super().reset(robots, rng)
+        self._rate = None
+        if self.features is not None:
+            self.features.reset(self.robots)
         self._numpy = self._numpy_q()
         n = int(self.meta["n_robots"])
         if len(robots) != n:
@@ -112,8 +120,16 @@ class HDQNPolicy(RuleChoosingPolicy):
                 f"policy: the HDQN was trained for {n} robots, the line has {len(robots)}"
             )
 
+    def bind_run(self, scenario: Scenario, seed: int, duration: float) -> None:
+        """The run's scenario (called by the line after ``reset``): the decision features
+        take the feeder's nominal rate from it."""
+        if self.features is not None:
+            self.features.reset(self.robots, float(scenario.feeder.rate))
+
     def attach(self, belt: Belt) -> None:
         """Called by the line with its belt: build the camera for this line's geometry."""
+        if self.features is not None:
+            self.features.attach(belt)
         scenario = camera_scenario(self.meta["scenario"], belt, self.robots)
         camera = BeltCamera(scenario, self.channels)
         camera.attach(belt)
@@ -124,7 +140,9 @@ class HDQNPolicy(RuleChoosingPolicy):
                 f"policy: this line gives observations of shape {tuple(got)}, the HDQN was "
                 f"trained on {want}; use a line with the trained belt grid and workspace size"
             )
-        warn_if_other_line(self.meta, belt, self.robots, f"the HDQN ({self.name})")
+        lines = self.meta.get("train_args", {}).get("lines", [])
+        if self.features is None or len(lines) < 2:  # not trained across lines (their inputs)
+            warn_if_other_line(self.meta, belt, self.robots, f"the HDQN ({self.name})")
         self.camera = camera
 
     def observe(self, decision: Decision) -> tuple[np.ndarray, np.ndarray | None]:
@@ -140,6 +158,8 @@ class HDQNPolicy(RuleChoosingPolicy):
             obs = camera.belt(now, free)[None]
         else:
             obs = camera.window(robot, now, free, self._decisions)[None]
+        if self.features is not None:
+            return obs, self.features.vector(decision)[None]
         return obs, robot_onehot([robot], len(self.robots))
 
     def _numpy_q(self) -> NumpyQ | None:

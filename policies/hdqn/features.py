@@ -1,0 +1,191 @@
+"""Decision features of the lookahead's student: what the rules' picks and the robots look like.
+
+The rollout-trained HDQN sees the belt image and the deciding robot's one-hot. The student
+trained on the lookahead controller's values (:mod:`pnp_twin.learning.student`) sees its
+robot's window of the image and a short vector of what the planner's choice turns on, all of
+it observable at the decision:
+
+- per rule (in the checkpoint's rule order): its pick's interception time from the tool, the
+  time the pick has left in the deciding robot's workspace, its place across the belt, when
+  the robot would be back at its bin after taking it (interception, grip, carry, place) and
+  how many of the other candidates leave its workspace before then;
+- per rule's pick also: the most time a downstream robot would have to spare for it (when it
+  leaves that robot's workspace less when that robot is free; 0: no robot downstream gets
+  it), and how many of the candidates the robot would lose meanwhile have no such slack;
+- per robot: an estimate of the seconds until it is free (from the part it holds or gripped
+  last, the belt's claims and grip times: grip, carry to its bin, place), the seconds since
+  its last grip (a robot that is down stops gripping), its arm speed and the unclaimed parts
+  in its workspace;
+- the line: belt speed and the feeder's nominal rate (the scenario's, handed over by
+  ``bind_run``; the parts fed so far per second when no scenario is bound) and the number of
+  candidates.
+
+Every value is clipped to a small non-negative range (the numpy forward pass's bound needs
+inputs >= 0). :data:`SETS` names the feature sets; a checkpoint records its set in ``meta.json``
+(``features``), so the policy computes the same vector at inference.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.decision import Decision, RobotSpec
+
+SETS = ("student-v1",)
+"""Known feature sets (``meta.json``'s ``features``)."""
+
+HORIZON = 2.0
+"""Times (interception, time left, busy) are clipped to [0, HORIZON] s."""
+SINCE = 4.0
+"""Seconds since a robot's last grip are clipped to [0, SINCE]."""
+PER_PICK = 7
+"""Features per rule's pick."""
+PER_ROBOT = 4
+"""Features per robot."""
+
+
+def size(name: str, n_rules: int, n_robots: int) -> int:
+    """Length of feature set ``name``'s vector (the robot one-hot included)."""
+    check(name)
+    return n_robots + PER_PICK * n_rules + PER_ROBOT * n_robots + 3
+
+
+def check(name: str) -> None:
+    if name not in SETS:
+        raise ValueError(f"features: '{name}' is not a feature set; allowed {', '.join(SETS)}")
+
+
+class DecisionFeatures:
+    """Computes a feature set's vector for the decisions of one run."""
+
+    def __init__(self, name: str, rules: Sequence[str]) -> None:
+        check(name)
+        self.name = name
+        self.rules = list(rules)
+        self.robots: list[RobotSpec] = []
+        self.belt: Any = None
+        self.rate: float | None = None
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, robots: list[RobotSpec], rate: float | None = None) -> None:
+        """The run's robots and the feeder's nominal rate (None: measured from the belt)."""
+        self.robots = list(robots)
+        self.rate = rate
+
+    def attach(self, belt: Any) -> None:
+        self.belt = belt
+
+    def picks(self, decision: Decision) -> list[int]:
+        """The part each rule would pick (rules here are deterministic; SIRO is not one)."""
+        return [RULES[r](decision, self.rng) for r in self.rules]
+
+    def vector(self, decision: Decision, picks: list[int] | None = None) -> np.ndarray:
+        """The features of ``decision`` (float32, every entry >= 0)."""
+        robots, n = self.robots, len(self.robots)
+        spec = decision.spec
+        now = decision.time
+        if picks is None:
+            picks = self.picks(decision)
+        out = [0.0] * size(self.name, len(self.rules), n)
+        out[decision.robot] = 1.0
+        j = n
+        b, v, w = spec.workspace[1], spec.belt_speed, spec.belt_width
+        xs, ys, times = decision.xs, decision.ys, decision.times
+        busy, since, load = self._robot_state(now)
+        left = [(b - x) / v for x in xs]
+        # the most time a downstream robot has to spare for each candidate: when it leaves
+        # that robot's workspace, less when the robot is free (0: nobody downstream gets it)
+        down = [r.workspace[1] for r in robots[decision.robot + 1 :]]
+        free_at = busy[decision.robot + 1 :]
+        slack = [
+            max([(e - x) / v - f for e, f in zip(down, free_at, strict=True)], default=0.0)
+            for x in xs
+        ]
+        bx, by = spec.bin
+        arm, handling = spec.arm_speed, spec.pick_time + spec.place_time
+        for k in picks:
+            # back at the bin after picking k: its interception, grip, carry, place
+            grip_x = xs[k] + v * times[k]
+            back = times[k] + handling + math.hypot(bx - grip_x, by - ys[k]) / arm
+            lost = [q for q, t in enumerate(left) if q != k and t < back]
+            gone = sum(1 for q in lost if slack[q] <= 0.0)
+            out[j] = _clip(times[k], HORIZON)
+            out[j + 1] = _clip(left[k], HORIZON)
+            out[j + 2] = _clip(ys[k] / w, 1.0)
+            out[j + 3] = _clip(back, HORIZON)
+            out[j + 4] = min(len(lost), 5) / 5.0
+            out[j + 5] = _clip(slack[k], 2 * HORIZON) / 2.0
+            out[j + 6] = min(gone, 5) / 5.0
+            j += PER_PICK
+        for r in range(n):
+            out[j] = _clip(busy[r], HORIZON)
+            out[j + 1] = _clip(since[r], SINCE) / SINCE
+            out[j + 2] = robots[r].arm_speed / 4.0
+            out[j + 3] = min(load[r], 10) / 10.0
+            j += PER_ROBOT
+        out[j] = spec.belt_speed
+        out[j + 1] = self._rate(now) / 10.0
+        out[j + 2] = len(decision.parts) / 10.0
+        return np.asarray(out, dtype=np.float32)
+
+    def _rate(self, now: float) -> float:
+        if self.rate is not None:
+            return self.rate
+        belt = self.belt
+        if belt is None or now <= 0.0:
+            return 0.0
+        return float(belt.arrived) / now
+
+    def _robot_state(self, now: float) -> tuple[list[float], list[float], list[int]]:
+        """Per robot: seconds until free (0 if free or unknown), seconds since its last grip,
+        and the unclaimed parts in its workspace now."""
+        n = len(self.robots)
+        busy = [0.0] * n
+        since = [SINCE] * n
+        load = [0] * n
+        belt = self.belt
+        if belt is None:
+            return busy, since, load
+        on = belt.on_belt(now)
+        lo, hi = on.start, on.stop
+        # plain floats: indexing numpy arrays (the compiled engine's belt) one by one is slow
+        fed, ys = _floats(belt.fed, lo, hi), _floats(belt.y, lo, hi)
+        holder, left_at = _floats(belt.holder, lo, hi), _floats(belt.left_at, lo, hi)
+        v = belt.speed
+        spaces = [r.workspace for r in self.robots]
+        for i in range(hi - lo):
+            r = int(holder[i])
+            if r < 0:
+                x = v * (now - fed[i])
+                for q, (a, b) in enumerate(spaces):
+                    if a <= x <= b:
+                        load[q] += 1
+                continue
+            grip = left_at[i]
+            if r >= n or grip == math.inf:
+                continue
+            spec = self.robots[r]
+            x = v * (grip - fed[i])
+            bx, by = spec.bin
+            carry = math.hypot(bx - x, by - ys[i]) / spec.arm_speed
+            free = grip + spec.pick_time + carry + spec.place_time
+            if free - now > busy[r]:
+                busy[r] = free - now
+            if grip <= now and now - grip < since[r]:
+                since[r] = now - grip
+        return busy, since, load
+
+
+def _clip(x: float, hi: float) -> float:
+    return 0.0 if x < 0.0 else (hi if x > hi else x)
+
+
+def _floats(a: Any, lo: int, hi: int) -> list[Any]:
+    """``a[lo:hi]`` as a list of Python numbers (``a`` a list or a numpy array)."""
+    part = a[lo:hi]
+    return part.tolist() if isinstance(part, np.ndarray) else list(part)
