@@ -262,8 +262,8 @@ class FastLine:
         self.holder = np.full(n_parts, -1, dtype=np.int64)
         self.left_at = np.full(n_parts, math.inf)
         self.rec_i = np.full((n_parts, 2), -1, dtype=np.int64)
-        self.rec_f = np.full((n_parts, 4), math.nan)
-        self.rec_f[:, 3] = 0.0
+        self.rec_f = np.empty((n_parts, 4))
+        self.rec_f[:] = (math.nan, math.nan, math.nan, 0.0)  # not decided, picked, placed
         self.sp_i = np.zeros((span_room, 2), dtype=np.int32)  # robot, state
         self.sp_f = np.zeros((span_room, 2))  # start, end
         self.counts = np.zeros((n, len(L.RULE_NAMES)), dtype=np.int64)
