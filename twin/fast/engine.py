@@ -285,8 +285,9 @@ class FastLine:
         status: 0 (reached ``until``), ST_CHOOSE (an external policy's decision: call
         :meth:`answer`) or ST_EPOCH (hold mode: call :meth:`release`)."""
         while True:
-            p, s, rec, st, sc = self.structs
-            status = run_events(p, s, rec, st, sc, min(until, self.end_at))
+            # the structures live only through the call: _grow resizes the span buffer in
+            # place only when nothing else refers to it
+            status = run_events(*self.structs, min(until, self.end_at))
             if status != L.ST_ROOM:
                 return int(status)
             self._grow()
