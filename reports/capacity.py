@@ -70,14 +70,15 @@ def capacity_figure(c: dict[str, Any]) -> go.Figure:
         annotation_text=f"target {fmt_pct(target)}",
         annotation_position="bottom left",
     )
-    for key, label, dash in (("ci_low", "promise", "solid"), ("max_rate", "mean", "dot")):
-        x = c.get(key)
+    crossings = (("ci_low", "promise", "solid", "left"), ("max_rate", "mean", "dot", "right"))
+    for key, label, dash, side in crossings:  # the promise's label left of its line, the
+        x = c.get(key)  # mean's right of its: close crossings do not print over each other
         if x is not None:
             fig.add_vline(
                 x=x,
                 line={"color": "#2a9d8f", "width": 1.5, "dash": dash},
                 annotation_text=f"{label}: {x:.3g}",
-                annotation_position="top right",
+                annotation_position=f"top {side}",
             )
     fig.update_xaxes(title="Part flow (parts/s)")
     fig.update_yaxes(title="Gripping rate (%)", ticksuffix=" %")
@@ -103,7 +104,8 @@ def flows_table(c: dict[str, Any]) -> str:
         ]
         for p in c.get("curve") or []
     ]
-    header = ["Part flow (parts/s)", "Best rule", "Mean G", "CI of G", "Promised"]
+    header = ["Part flow (parts/s)", "Rule with the highest lower bound", "Mean G (best)"]
+    header += ["CI of the best rule's G", "Promised"]
     return table_html(header, rows, scroll=len(rows) > 14)
 
 
@@ -143,7 +145,8 @@ def whatif_section(c: dict[str, Any], folder: Path | str | None = None) -> Secti
     for p in curve:
         rate = float(p["rate"])
         found = runs.get(rate) or {}
-        stats = {r: t_interval(g, level) for r, g in found.items()}
+        stats = {r: (b["mean"], b["low"], b["high"]) for r, b in (p.get("rules") or {}).items()}
+        stats = stats or {r: t_interval(g, level) for r, g in found.items()}
         if not stats:  # no journal: the best rule of the curve only
             stats = {str(p["policy"]): (p["mean"], p["low"], p["high"])}
         for rule, (mean, low_t, high_t) in stats.items():
@@ -248,7 +251,7 @@ def configurations_table(c: dict[str, Any]) -> str:
         ]
         for one in configs
     ]
-    header = [param_label(p) for p in paths] + ["Best rule", "Promise (parts/s)"]
+    header = [param_label(p) for p in paths] + ["Rule of the promise", "Promise (parts/s)"]
     header += ["Mean crossing", "Upper crossing"]
     return table_html(header, rows, left=len(paths) + 1, scroll=len(rows) > 14)
 
@@ -286,7 +289,8 @@ def build_capacity_page(c: dict[str, Any], folder: Path | str | None = None) -> 
         (
             "Promise",
             "–" if lo is None else f"{lo:.3g} parts/s",
-            f"G ≥ {c['target']:g} % at {conf:g} %",
+            f"G ≥ {c['target']:g} % at {conf:g} %"
+            + (f" running {c['policy']}" if c.get("policy") and lo is not None else ""),
         ),
         ("Mean crossing", "–" if mid is None else f"{mid:.3g} parts/s", "mean G = target"),
         ("Upper crossing", "–" if hi is None else f"{hi:.3g} parts/s", "beyond: surely missed"),

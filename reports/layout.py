@@ -406,10 +406,13 @@ def whatif_section(study: Study) -> Section | None:
     start = {**ref, "policy": winners.get(tuple(ref[p] for p in grid), study.policies[0])}
     conf = f"{100 * float(study.meta.get('confidence') or 0.95):g} %"
     panel = whatif_html(grid, rows, conf, start, no_cost="" if costs else "no cost file")
-    intro = "Choose a value of each swept field and a rule: the gripping rate the study "
-    intro += "measured there, with its confidence interval"
-    intro += f" and total cost, priced from {costs.get('file')}," if costs else ""
-    intro += " (from the stored runs; nothing is simulated)."
+    what = "a value of each swept field and a rule" if grid else "a rule"
+    if study.mix is not None:
+        what = "a rule mix"
+    intro = f"Choose {what}: the gripping rate the study measured there, with its confidence "
+    intro += "interval"
+    intro += f" and total cost priced from {costs.get('file')}" if costs else ""
+    intro += ", from the stored runs (nothing is simulated)."
     return Section("whatif", "What if", esc(intro), [panel])
 
 

@@ -23,6 +23,7 @@ def mix_table(study: Study) -> str:
     if paired is not None and not paired.empty:
         for _, p in paired.iterrows():
             diff[str(p["policy"])] = (p["diff_mean"], p["diff_ci_low"], p["diff_ci_high"])
+    priced = any(r.get("total_cost") is not None for r in ranked)
     rows = []
     for i, r in enumerate(ranked, start=1):
         d = diff.get(str(r["mix"]))
@@ -41,11 +42,17 @@ def mix_table(study: Study) -> str:
                 + f'<span class="pm">{esc(fmt_pm(r.get("ci_low"), r.get("ci_high"), 2))}</span>',
                 vs,
             ]
+            + ([_cost(r.get("total_cost"))] if priced else [])
         )
     header = ["Rank", *(f"Robot {k}" for k in range(1, n + 1))]
     header += ["Gripping rate (%)", "Difference to the best, points (paired 95 % CI)"]
+    header += ["Total cost"] if priced else []
     classes = ["best" if i == 0 else "" for i in range(len(rows))]
     return table_html(header, rows, left=n + 1, classes=classes, scroll=len(rows) > 14)
+
+
+def _cost(value: Any) -> str:
+    return "–" if value is None or not math.isfinite(float(value)) else f"{float(value):,.0f}"
 
 
 def mix_section(study: Study) -> Section | None:

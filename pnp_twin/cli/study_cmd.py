@@ -14,7 +14,7 @@ import os
 import shlex
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
@@ -52,7 +52,7 @@ from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.costing import check_costs, read_costs
 from pnp_twin.studies.folder import Tables
 from pnp_twin.studies.journal import DEFINITION
-from pnp_twin.studies.plan import AUTO, StudyPlan
+from pnp_twin.studies.plan import AUTO
 from pnp_twin.studies.rulemix import DEFAULT_BUDGET, check_mix, run_mix
 from pnp_twin.studies.sizing import COUNT, MTBF, check_size, run_size
 from pnp_twin.twin.budget import check_study
@@ -201,13 +201,14 @@ def _options(
     return opts
 
 
-def _costs(path: Path | None, plan: StudyPlan) -> dict[str, Any] | None:
-    """``--costs``: the prices, checked against every arm and belt speed the study runs."""
+def _costs(path: Path | None, scenarios: Sequence[Scenario]) -> dict[str, Any] | None:
+    """``--costs``: the prices, checked against every arm and belt speed the study runs
+    (sweep, size and mix share it)."""
     if path is None:
         return None
     check_regular(path, "--costs", UserError)
     prices = read_costs(path)
-    check_costs(prices, plan.scenarios)
+    check_costs(prices, scenarios)
     return prices
 
 
@@ -379,7 +380,7 @@ def sweep(
     sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
     _check_work(sc, reps, _policy_count(sc, policy), force)
     plan = build_plan(sc, policies=policy, replications=reps)
-    prices = _costs(costs, plan)
+    prices = _costs(costs, plan.scenarios)
     _check_out(out, scenario, sc)
     with removed_if_refused(out), progress_bar("sweep") as update:
         opts = _options(workers, backend, address, fresh, update, engine=engine)
@@ -428,7 +429,8 @@ def size(
     counts = 1 if COUNT in grid else max(8, 2 * sc.robots.count)  # what run_size adds
     _check_work(sc, reps, _policy_count(sc, policy), force, counts * (1 if MTBF in grid else 2))
     target = check_size(sc, target, confidence, policy, reps, layout)
-    prices = _costs(costs, build_plan(sc, policies=policy, replications=reps)) if costs else None
+    plan = build_plan(sc, policies=policy, replications=reps) if costs else None
+    prices = _costs(costs, plan.scenarios) if plan is not None else None
     _check_out(out, scenario, sc)
     opts = _options(workers, backend, address, fresh, None, confidence, engine)
     opts.costs, opts.costs_file = prices, str(costs or "")
@@ -501,6 +503,7 @@ def mix(
     no_report: NoReportOpt = False,
     force: ForceOpt = False,
     engine: EngineOpt = Engine.auto,
+    costs: CostsOpt = None,
 ) -> None:
     """Search the best per-robot mix of dispatching rules (exhaustive or GRASP)."""
     sc = _load(scenario, sets)
@@ -515,8 +518,10 @@ def mix(
     _check_work(sc, reps, budget, force, grid={})  # a mix search sweeps no grid
     names = _rule_list(rules)
     check_mix(sc, names, reps if isinstance(reps, int) else None, budget)
+    prices = _costs(costs, [sc])  # every mix runs the same line: one price
     _check_out(out, scenario, sc)
     opts = _options(workers, backend, address, fresh, None, engine=engine)
+    opts.costs, opts.costs_file = prices, str(costs or "")
     with removed_if_refused(out), progress_bar("mix") as update:
         opts.progress = update
         _, result = run_mix(sc, out, opts, names, reps if isinstance(reps, int) else None, budget)
@@ -528,8 +533,11 @@ def mix(
     t.add_column("#", justify="right")
     t.add_column("mix")
     t.add_column("G %", justify="right")
+    if prices is not None:
+        t.add_column("total cost", justify="right")
     for i, r in enumerate(result["ranked"][:10], start=1):
-        t.add_row(str(i), r["mix"], _g(r["gripping_rate_mean"], r["ci_low"], r["ci_high"]))
+        cost = [f"{r['total_cost']:,.0f}"] if prices is not None else []
+        t.add_row(str(i), r["mix"], _g(r["gripping_rate_mean"], r["ci_low"], r["ci_high"]), *cost)
     stdout_console().print(t)
     from pnp_twin.reports.answers import (
         mix_headline,  # the report's answer, best vs runner-up paired

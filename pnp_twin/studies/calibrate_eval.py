@@ -6,10 +6,13 @@ replications that use common random numbers: replication k of every point, polic
 parameter vector sees the same part stream, so the objective changes smoothly with the
 parameters instead of jumping with the noise.
 
-Every evaluated point is journalled atomically as ``DIR/evals/<key>.json``, where the key
-hashes exactly what was simulated (the point's resolved scenario, the policies, the seeds,
-the KPIs). A rerun of an interrupted fit replays the optimiser's steps from the journal
-without simulating them again.
+Every run is journalled the moment it finishes, in ``DIR/evals/runs.jsonl``
+(:mod:`pnp_twin.studies.runlog`: one fsynced JSON line per run, keyed by the run's resolved
+scenario, policy, seed and KPIs), and every finished point atomically as
+``DIR/evals/<key>.json``, where the key hashes exactly what was simulated (the point's
+resolved scenario, the policies, the seeds, the KPIs). A rerun of an interrupted fit, design
+or capacity search replays the finished points and runs without simulating them again,
+down to the runs of a point that was cut short half-way.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import numpy as np
 from pnp_twin.parallel import pool_map
 from pnp_twin.studies.execute import execute
 from pnp_twin.studies.plan import RunSpec, StudyError
+from pnp_twin.studies.runlog import RunLog
 from pnp_twin.twin.output import write_text
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.stats import t_interval
@@ -60,6 +64,19 @@ def _key(
     }
     text = json.dumps(what, sort_keys=True, default=str)
     return hashlib.sha1(text.encode()).hexdigest()[:20]
+
+
+def _run_key(scene: dict[str, Any], policy: str, seed: int, kpis: Sequence[str]) -> str:
+    """The per-run log's key of one run: its resolved scenario, policy, seed and KPIs."""
+    what = {"scenario": scene, "policy": policy, "seed": seed, "kpis": list(kpis)}
+    text = json.dumps(what, sort_keys=True, default=str)
+    return hashlib.sha1(text.encode()).hexdigest()[:24]
+
+
+def _split(run_id: str) -> tuple[int, str, int]:
+    """'3|SPT|1' -> (point 3, policy SPT, replication 1)."""
+    i, p, k = run_id.split("|")
+    return int(i), p, int(k)
 
 
 def _summarise(runs: dict[str, list[dict[str, float]]], kpis: Sequence[str]) -> PointPrediction:
@@ -113,6 +130,9 @@ class Evaluator:
         self.engines_ran: set[str] = set()  # the engines that simulated this evaluator's runs
         self.simulated = 0  # points simulated by this evaluator (not replayed)
         self.replayed = 0
+        self.log = RunLog(self.folder)  # every run, written as it finishes
+        self.runs_simulated = 0  # runs simulated now; the others of a simulated point came
+        self.runs_replayed = 0  # from the per-run log (a point cut short by a kill)
 
     def predict(
         self, scenarios: Sequence[Scenario], labels: Sequence[str]
@@ -144,28 +164,50 @@ class Evaluator:
                 self.simulated += 1
         return [runs[i] for i in range(len(scenarios))]
 
+    def _replay(
+        self, scenarios: Sequence[Scenario], out: list[dict[str, list[Any]]]
+    ) -> dict[str, str]:
+        """Fill ``out`` with the runs the per-run log holds; the others' run ids and keys."""
+        keys: dict[str, str] = {}
+        for i, sc in enumerate(scenarios):
+            scene = sc.model_dump(mode="json", exclude={"source_dir", "name", "description"})
+            for p in self.policies:
+                for k, seed in enumerate(self.seeds):
+                    key = _run_key(scene, p, seed, self.kpis)
+                    stored = self.log.get(key)
+                    if stored is not None and all(c in stored for c in self.kpis):
+                        out[i][p][k] = {c: stored[c] for c in self.kpis}
+                        self.runs_replayed += 1
+                    else:
+                        keys[f"{i}|{p}|{k}"] = key
+        return keys
+
     def _simulate(
         self, scenarios: Sequence[Scenario], labels: Sequence[str]
     ) -> list[dict[str, list[dict[str, float]]]]:
-        specs = [
-            RunSpec(f"{i}|{p}|{k}", i, {}, p, k, seed, sc, engine=self.engine)
-            for i, sc in enumerate(scenarios)
-            for p in self.policies
-            for k, seed in enumerate(self.seeds)
-        ]
+        """Each scenario's runs: those in the per-run log read back, the others simulated
+        and logged one by one as they finish."""
         out: list[dict[str, list[Any]]] = [
             {p: [None] * len(self.seeds) for p in self.policies} for _ in scenarios
         ]
+        keys = self._replay(scenarios, out)  # run_id -> the per-run log's key, of runs to do
+        specs = [
+            RunSpec(run_id, i, {}, p, k, self.seeds[k], scenarios[i], engine=self.engine)
+            for run_id in keys
+            for i, p, k in [_split(run_id)]
+        ]
 
         def keep(row: dict[str, Any]) -> None:
-            i, p, k = row["run_id"].split("|")
+            i, p, k = _split(row["run_id"])
             missing = [c for c in self.kpis if c not in row]
             if missing:
                 raise StudyError(
-                    f"point {labels[int(i)]}: the line has no KPI {missing[0]} (robot KPIs "
+                    f"point {labels[i]}: the line has no KPI {missing[0]} (robot KPIs "
                     f"r<i>_... need robot i on the line)"
                 )
-            out[int(i)][p][int(k)] = {c: float(row[c]) for c in self.kpis}
+            out[i][p][k] = {c: float(row[c]) for c in self.kpis}
+            self.log.add(keys[row["run_id"]], out[i][p][k])
+            self.runs_simulated += 1
             self.engines_ran.add(str(row.get("engine", "simpy")))
 
         try:

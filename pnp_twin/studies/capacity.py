@@ -10,11 +10,21 @@ relative tolerance), not a grid:
 * ``ci_low``: the highest flow whose lower confidence bound does (what can be promised);
 * ``ci_high``: the highest flow whose upper bound does (beyond it the line surely misses).
 
-With several rules, the best is picked at each flow, so each rule's interval is taken at
-the Bonferroni level (``sizing.selected_confidence``) and the flow is judged by the best
-rule's bounds. Every evaluated flow is journalled in ``DIR/evals/`` (as calibrate does, keyed
-by the scenario, rules and seeds), so asking again with another target or confidence
-replays the flows it needs and simulates only new ones. ``DIR/capacity.json`` holds the
+With several rules, the answer is the capacity of the best rule, picked after seeing the
+data: each rule's interval is taken at the Bonferroni level (``sizing.selected_confidence``),
+so all of them hold together with the stated confidence, and each crossing is judged by the
+largest value over the rules at each flow (the best rule's G is at least the largest lower
+bound and at most the largest upper bound). So ``max_rate`` is the highest mean crossing of
+any rule, ``ci_low`` the highest lower crossing (the promise, valid for the rule that
+reaches it: ``policy``) and ``ci_high`` the highest upper crossing of any rule (beyond it no
+rule meets the target); ``policies`` names the rule of each crossing. With G falling in the
+flow for every rule these are the largest of each rule's own crossings.
+
+Every run is journalled in ``DIR/evals/`` the moment it finishes (as calibrate does: the
+per-run log of :mod:`pnp_twin.studies.runlog`, and each finished flow keyed by the
+scenario, rules and seeds), so a killed search resumes without running a finished run again,
+and asking again with another target or confidence replays the flows it needs and
+simulates only new ones. ``DIR/capacity.json`` holds the
 answer and the curve of G against flow (every evaluated flow).
 
 With ``vary`` (``PATH=LO:HI`` whole numbers or ``PATH=V1,V2,...``, as in ``design``) the
@@ -78,7 +88,10 @@ class Capacity:
         self.progress = progress
 
     def at(self, rate: float) -> dict[str, Any]:
-        """The best rule's G (mean, bounds at the selection-safe level) at flow ``rate``."""
+        """G at flow ``rate``: each rule's mean and bounds (at the selection-safe level) in
+        ``rules``, and the best rule's: ``mean``, ``low``, ``high`` are the largest over
+        the rules (each bound a valid one for the best rule's G, since every rule's
+        interval holds together), ``policy`` the rule with the highest lower bound."""
         rate = _round(rate)
         if rate in self.points:
             return self.points[rate]
@@ -87,18 +100,29 @@ class Capacity:
         except ScenarioError as e:
             raise StudyError(f"capacity: flow {rate:g} parts/s: {e}") from None
         runs = self.evaluator.runs([sc], [f"{self.name}flow {rate:g}"])[0]
-        best: dict[str, Any] | None = None
-        for rule, rows in runs.items():
-            mean, low, high = t_interval([r["gripping_rate"] for r in rows], self.level)
-            low = max(low, 0.0) if math.isfinite(low) else mean
-            high = min(high, 100.0) if math.isfinite(high) else mean
-            if best is None or (low, mean) > (best["low"], best["mean"]):
-                best = {"rate": rate, "policy": rule, "mean": mean, "low": low, "high": high}
-        assert best is not None
-        self.points[rate] = best
+        each = {rule: self._bounds(rows) for rule, rows in runs.items()}
+        point: dict[str, Any] = {"rate": rate, "rules": each}
+        for key in ("mean", "low", "high"):
+            point[key] = max(b[key] for b in each.values())
+        point["policy"] = max(each, key=lambda r: (each[r]["low"], each[r]["mean"]))
+        self.points[rate] = point
         if self.progress is not None:
             self.progress(len(self.points))
-        return best
+        return point
+
+    def _bounds(self, rows: Sequence[Mapping[str, Any]]) -> dict[str, float]:
+        mean, low, high = t_interval([r["gripping_rate"] for r in rows], self.level)
+        low = max(low, 0.0) if math.isfinite(low) else mean
+        high = min(high, 100.0) if math.isfinite(high) else mean
+        return {"mean": mean, "low": low, "high": high}
+
+    def rule_at(self, rate: float | None, key: str) -> str | None:
+        """The rule whose ``key`` (mean, low or high) is the largest at ``rate``: the rule
+        a crossing of that key belongs to."""
+        if rate is None:
+            return None
+        each = self.at(rate)["rules"]
+        return str(max(each, key=lambda r: (each[r][key], each[r]["mean"])))
 
     def ok(self, rate: float, key: str) -> bool:
         return bool(self.at(rate)[key] >= self.target)
@@ -226,14 +250,15 @@ def run_capacity(
         name = "".join(f"{k}={v}, " for k, v in values.items()) if i else ""
         cap = Capacity(sc, ev, target, confidence, progress, name)
         cross = {name: cap.crossing(key, first) for name, key in CRITERIA.items()}
-        rate = cross["max_rate"][0]
+        by = {name: cap.rule_at(cross[name][0], key) for name, key in CRITERIA.items()}
         one: dict[str, Any] = {
             "choice": values,
-            "max_rate": rate,
+            "max_rate": cross["max_rate"][0],
             "ci_low": cross["ci_low"][0],
             "ci_high": cross["ci_high"][0],
             "search": {k: v[1] for k, v in cross.items()},
-            "policy": cap.at(rate)["policy"] if rate is not None else None,
+            "policy": by["ci_low"] or by["max_rate"],  # the rule the promise is for
+            "policies": by,
             "robots": sc.robots.count,
             "curve": sorted(cap.points.values(), key=lambda p: p["rate"]),
             "confidence": confidence,
@@ -251,6 +276,7 @@ def run_capacity(
         "ci_high": head["ci_high"],
         "search": head["search"],
         "policy": head["policy"],
+        "policies": head["policies"],
         "rules": rules,
         "confidence_each": selected_confidence(confidence, len(rules)),
         "replications": replications,
@@ -295,9 +321,17 @@ def capacity_text(c: dict[str, Any]) -> str:
     span = f" [{lo:.3g}, {hi:.3g}]" if lo is not None and hi is not None else ""
     above = c["search"]["max_rate"] == "above"
     more = " (or more: still met at the highest flow tried)" if above else ""
-    rule = f" running {c['policy']}" if c.get("policy") else ""
-    promise = f"; {lo:.3g} parts/s is met with {conf} confidence" if lo is not None else ""
+    by = c.get("policies") or {}
+    mean_rule = by.get("max_rate") or c.get("policy")
+    if lo is None or mean_rule == c.get("policy"):  # one rule answers it all
+        rule = f" running {c['policy']}" if c.get("policy") else ""
+        promise = f"; {lo:.3g} parts/s is met with {conf} confidence" if lo is not None else ""
+        return (
+            f"With {n}{rule} the line sustains {c['max_rate']:.3g} parts/s{span} at {goal}"
+            f"{more}{promise}."
+        )
     return (
-        f"With {n}{rule} the line sustains {c['max_rate']:.3g} parts/s{span} at {goal}"
-        f"{more}{promise}."
+        f"With {n} the best rule sustains {c['max_rate']:.3g} parts/s{span} at {goal}"
+        f"{more} ({mean_rule} by the mean); running {c['policy']}, {lo:.3g} parts/s is met "
+        f"with {conf} confidence after picking the rule."
     )

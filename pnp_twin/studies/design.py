@@ -31,8 +31,10 @@ replication k has the same seed everywhere); a configuration is *met* when its l
 reaches the target, *missed* when its upper bound is below it, *open* otherwise; while an
 open configuration could still be cheaper than the cheapest met one, the open ones that
 could are doubled in replications (up to ``most``), nowhere else. Every run is journalled
-per configuration, rule and seed under ``DIR/evals/``, so asking again with another target,
-confidence or cost file simulates only the replications the new question needs.
+per configuration, rule and seed under ``DIR/evals/`` the moment it finishes
+(:mod:`pnp_twin.studies.runlog`), so a killed design resumes without running a finished run
+again, and asking again with another target, confidence or cost file simulates only the
+replications the new question needs.
 """
 
 from __future__ import annotations

@@ -290,14 +290,12 @@ class Journal:
 
     # -- the runs' rows: JSON lines in segments -------------------------------------------
     def _has_runs(self) -> bool:
-        """Whether runs/ holds any journaled run (a segment with a line, or an older
-        folder's run file)."""
+        """Whether runs/ holds any journaled run: a segment with a complete, readable row
+        (a line cut short by a kill is no run; it is dropped when read), or an older
+        folder's run file."""
         if not self.runs.is_dir():
             return False
-        return any(
-            (SEGMENT.fullmatch(p.name) and p.stat().st_size > 0) or _legacy(p)
-            for p in self.runs.iterdir()
-        )
+        return any(_legacy(p) for p in self.runs.iterdir()) or bool(journaled(self.runs))
 
     def _segments(self) -> list[Path]:
         if not self.runs.is_dir():

@@ -32,6 +32,7 @@ import numpy as np
 
 from pnp_twin.policies import RULES
 from pnp_twin.policies.registry import rule_names
+from pnp_twin.studies.costing import study_costs
 from pnp_twin.studies.folder import Tables
 from pnp_twin.studies.plan import StudyError, StudyPlan, build_plan
 from pnp_twin.studies.runner import Options, Session, finish, open_session
@@ -242,6 +243,11 @@ def run_mix(
         "replications": base.replications,
     }
     tables = finish(session, plan, "mix", rows, {"method": method, "rules": rules})
+    if options.costs is not None:  # --costs: each mix's total cost, as meta.json has it
+        priced = study_costs(plan, tables, options.costs, options.costs_file)["rows"]
+        cost = {r["policy"]: r["total_cost"] for r in priced}
+        for r in ranked:
+            r["total_cost"] = cost.get(r["mix"])
     write_json(mix, out / "mix.json", keep_nan=True)
     log.info("mix search (%s): best %s of %d mixes", method, mix["best"], len(search.order))
     return tables, mix

@@ -2,10 +2,19 @@
 
 A count *reaches* the target gripping rate G* with confidence c when the lower bound of the
 two-sided c t-interval of its mean G over replications is at least G* (the best policy at
-that grid point). The answer sits next to the empirical rule of MODEL.md,
-N_min = f_p / PPas, where PPas is the picks per second of one saturated robot, measured in
-the study as throughput / (N x utilisation) at its smallest robot count, plus a safety
-margin of 20 % (rounded up): ``n_recommended = ceil(1.2 x N_min)``.
+that grid point). The answer is chosen so that the confidence holds after choosing it: the
+counts are tested in a fixed sequence, from the largest down, each at the full level, and
+the sequence stops at the first count that misses the target (in any swept condition); the
+answer is the smallest count of that unbroken run. With several rules each rule is its own
+sequence, every interval at the Bonferroni level over the rules, and the answer is the
+smallest count any rule's sequence reaches (:func:`fixed_sequence`). A count that reaches the
+target below a count that misses it is not the answer: that would be testing every count at
+the full level and keeping the smallest pass, whose error grows with the counts tried.
+
+The answer sits next to the empirical rule of MODEL.md, N_min = f_p / PPas, where PPas is
+the picks per second of one saturated robot, measured in the study as throughput /
+(N x utilisation) at its smallest robot count, plus a safety margin of 20 % (rounded up):
+``n_recommended = ceil(1.2 x N_min)``.
 
 Breakdowns: ``size`` adds ``robots.mtbf`` to the grid, [0, MTBF], with the scenario's MTBF
 and MTTR or, when it has none, the assumption of a gripper jam every 10 minutes cleared in
@@ -156,12 +165,6 @@ def _select(frame: pd.DataFrame, condition: Mapping[str, Any]) -> pd.DataFrame:
     return frame[mask]
 
 
-def smallest_count(rows: pd.DataFrame) -> int | None:
-    """The smallest robot count whose row reached the target (None if none did)."""
-    hit = rows[rows["reached"]]
-    return int(hit[COUNT].min()) if len(hit) else None
-
-
 def selected_confidence(confidence: float, rules: int) -> float:
     """The confidence of each rule's interval so that all ``rules`` intervals hold together
     with ``confidence`` (Bonferroni): what keeps the promise after picking the best rule."""
@@ -188,41 +191,105 @@ def point_rows(
         out["ci_high"] = best["gripping_rate_ci_high"]
         out["reached"] = (best["gripping_rate_ci_low"] >= target).to_numpy()
         return out.reset_index(drop=True)
+    each = rule_rows(results, grid, target, confidence)
+
+    def key(i: Any) -> tuple[float, float]:  # ties: the first rule given
+        low = float(each.at[i, "ci_low"])
+        return (low if math.isfinite(low) else -math.inf, float(each.at[i, "gripping_rate_mean"]))
+
+    picked = [max(at.index, key=key) for _, at in each.groupby("point", sort=True)]
+    return each.loc[picked].reset_index(drop=True)
+
+
+def rule_rows(
+    results: pd.DataFrame, grid: Sequence[str], target: float, confidence: float
+) -> pd.DataFrame:
+    """Per grid point and rule: mean G and its interval at the Bonferroni level over the
+    point's rules (:func:`selected_confidence`), and whether the lower bound reaches the
+    target."""
     rows = []
     for point, at in results.groupby("point", sort=True):
         rules = list(dict.fromkeys(at["policy"]))
         level = selected_confidence(confidence, len(rules))
-        scored = []
+        first = at.iloc[0]
         for rule in rules:
             mean, low, high = t_interval(at.loc[at["policy"] == rule, "gripping_rate"], level)
             low, high = max(low, 0.0), min(high, 100.0)  # G cannot leave [0, 100]
-            key = (low if math.isfinite(low) else -math.inf, mean)
-            scored.append((key, rule, mean, low, high))
-        _, rule, mean, low, high = max(scored, key=lambda t: t[0])
-        first = at.iloc[0]
-        rows.append(
-            {
-                "point": int(point),
-                **{c: first[c] for c in grid},
-                "policy": rule,
-                "gripping_rate_mean": mean,
-                "ci_low": low,
-                "ci_high": high,
-                "reached": bool(math.isfinite(low) and low >= target),
-                "rules": len(rules),
-                "confidence_each": level,
-            }
-        )
+            rows.append(
+                {
+                    "point": int(point),
+                    **{c: first[c] for c in grid},
+                    "policy": rule,
+                    "gripping_rate_mean": mean,
+                    "ci_low": low,
+                    "ci_high": high,
+                    "reached": bool(math.isfinite(low) and low >= target),
+                    "rules": len(rules),
+                    "confidence_each": level,
+                }
+            )
     return pd.DataFrame(rows)
 
 
-def _robust_answer(rows: pd.DataFrame, conditions: list[dict[str, Any]]) -> int | None:
-    """Smallest count that reaches the target in every swept condition."""
-    for n in sorted(rows[COUNT].unique()):
-        at = rows[rows[COUNT] == n]
-        if all(_select(at, c)["reached"].all() and len(_select(at, c)) for c in conditions):
-            return int(n)
-    return None
+def fixed_sequence(
+    each: pd.DataFrame, conditions: list[dict[str, Any]]
+) -> tuple[int | None, str | None]:
+    """The smallest count, and its rule, that a fixed-sequence test per rule accepts: each
+    rule's counts are tested from the largest down, each at the full (Bonferroni over rules)
+    level, and the sequence stops at the first count where the rule misses the target in
+    some condition; the answer is the smallest count of the unbroken run from the top,
+    over the rules (ties: the higher lower bound in the first condition). The order is fixed
+    before the data, so the claim keeps its confidence after choosing the count."""
+    best: tuple[int, float, str] | None = None
+    for rule in dict.fromkeys(each["policy"]):
+        mine = each[each["policy"] == rule]
+        last = None
+        for n in sorted(mine[COUNT].unique(), reverse=True):
+            at = mine[mine[COUNT] == n]
+            if not all(len(_select(at, c)) and _select(at, c)["reached"].all() for c in conditions):
+                break
+            last = int(n)
+        if last is None:
+            continue
+        low = float(_select(mine[mine[COUNT] == last], conditions[0])["ci_low"].iloc[0])
+        if best is None or (last, -low) < (best[0], -best[1]):
+            best = (last, low, str(rule))
+    return (best[0], best[2]) if best is not None else (None, None)
+
+
+def _answer_rule(
+    rows: pd.DataFrame, each: pd.DataFrame, answer: int | None, rule: str | None
+) -> pd.DataFrame:
+    """``rows`` with the answer's points (no breakdowns) showing the answer's rule, whose
+    sequence reached them, instead of the rule with the highest lower bound there."""
+    if answer is None:
+        return rows
+    mine = each[(each[COUNT] == answer) & (each["policy"] == rule)]
+    rest = rows[~rows["point"].isin(mine["point"])]
+    return pd.concat([rest, mine]).sort_values("point").reset_index(drop=True)
+
+
+def selection(rules: int, confidence: float) -> dict[str, Any]:
+    """sizing.json's ``selection``: how the count and the rule are chosen so that the answer
+    keeps its confidence (the report's method line)."""
+    each = selected_confidence(confidence, rules)
+    sequence = (
+        "Robot counts are tested from the largest down, each at the full level, stopping at "
+        "the first count that misses the target (fixed-sequence testing); the answer is the "
+        "smallest count of that unbroken run, so it keeps "
+        f"{100 * confidence:g} % confidence after choosing the count"
+    )
+    if rules > 1:
+        sequence += (
+            f"; each of the {rules} rules is its own sequence, with every interval taken at "
+            f"{100 * each:.4g} % (Bonferroni), so picking the rule keeps it too"
+        )
+    return {
+        "rules": rules,
+        "method": "fixed-sequence" + (" + bonferroni" if rules > 1 else ""),
+        "confidence_each": each,
+        "text": sequence + ".",
+    }
 
 
 def _limits(rows: pd.DataFrame, others: Sequence[str]) -> list[dict[str, Any]]:
@@ -287,18 +354,21 @@ def analyse(
     plain = rows[rows[MTBF] == 0] if MTBF in grid else rows
     failing = rows[rows[MTBF] == mtbf_values[-1]] if mtbf_values[-1] > 0 else None
     conditions = _conditions(plain, others)
-    answer = _robust_answer(plain, conditions)
-    by_condition = [{**c, "answer": smallest_count(_select(plain, c))} for c in conditions]
+    each = rule_rows(results, grid, target, confidence)
+    each_plain = each[each[MTBF] == 0] if MTBF in grid else each
+    answer, rule = fixed_sequence(each_plain, conditions)
+    by_condition = [{**c, "answer": fixed_sequence(each_plain, [c])[0]} for c in conditions]
     flow, ppas, where = _ppas(results, plain.sort_values([COUNT, "point"]))
     n_min = flow / ppas if ppas > 0 else math.nan
     n_rec = math.ceil(n_min * (1 + MARGIN)) if math.isfinite(n_min) else None
     mtbf = float(mtbf_values[-1]) if mtbf_values[-1] > 0 else DEFAULT_MTBF
     mttr = float(scenario.robots.mttr) or DEFAULT_MTTR
     availability = mtbf / (mtbf + mttr)
-    n_fail = _robust_answer(failing, conditions) if failing is not None else None
-    base = _select(plain, conditions[0])
+    worst = each[each[MTBF] == mtbf_values[-1]] if failing is not None else None
+    n_fail = fixed_sequence(worst, conditions)[0] if worst is not None else None
+    base = _select(each_plain[each_plain["policy"] == rule], conditions[0])
     minus = None
-    if answer is not None:
+    if answer is not None:  # the same rule with one robot fewer
         m = base[base[COUNT] == answer - 1]
         minus = _g(m.iloc[0]) if len(m) else None
     answer_row = base[base[COUNT] == answer].iloc[0] if answer is not None else None
@@ -306,21 +376,10 @@ def analyse(
         "target": target,
         "confidence": confidence,
         "parameter": COUNT,
-        "rows": _records(rows),
+        "rows": _records(_answer_rule(rows, each_plain, answer, rule)),
         "answer": answer,
-        "rule": None if answer_row is None else str(answer_row["policy"]),
-        "selection": {
-            "rules": rules,
-            "method": "bonferroni" if rules > 1 else "none",
-            "confidence_each": selected_confidence(confidence, rules),
-            "text": (
-                f"The best of {rules} rules is picked at each count, so each rule's interval "
-                f"is taken at {100 * selected_confidence(confidence, rules):.4g} % (Bonferroni)"
-                f" for the pick to hold with {100 * confidence:g} % confidence."
-                if rules > 1
-                else ""
-            ),
-        },
+        "rule": rule,
+        "selection": selection(rules, confidence),
         "by_condition": by_condition,
         "limits": _limits(plain, others),
         "rule_of_thumb": {

@@ -69,3 +69,70 @@ def test_cli_json_and_a_trace_is_refused(tmp_path: Path) -> None:
     sc = load_scenario("trace_replay", {"duration": 30.0})
     with pytest.raises(StudyError, match="a replayed trace fixes the part flow"):
         run_capacity(sc, tmp_path / "t", 80.0)
+
+
+class TwoRules:
+    """A made-up evaluator: G falls linearly in the flow; rule A is precise (G = 100 - 5 f
+    +- 0.1), rule B has the higher mean but a wide spread (G = 100 - 4 f +- 10)."""
+
+    policies = ("A", "B")
+
+    def runs(self, scenarios, labels):
+        spread = (-1.0, -0.5, 0.0, 0.5, 1.0)
+        out = []
+        for sc in scenarios:
+            f = sc.feeder.rate
+            a = [{"gripping_rate": min(100.0, 100 - 5 * f + 0.1 * d)} for d in spread]
+            b = [{"gripping_rate": min(100.0, 100 - 4 * f + 10 * d)} for d in spread]
+            out.append({"A": a, "B": b})
+        return out
+
+
+def test_each_crossing_is_the_best_rules_and_names_the_promises_rule() -> None:
+    """With several rules, the mean and upper crossings are the highest over the rules (not
+    the rule with the best lower bound's), and the promise names its rule."""
+    from pnp_twin.studies.capacity import CRITERIA, Capacity
+    from pnp_twin.twin.stats import t_interval
+
+    sc = load_scenario(BASELINE, overrides={**LINE, "feeder.rate": 2.0})
+    cap = Capacity(sc, TwoRules(), 80.0, 0.95)  # type: ignore[arg-type]
+    cross = {name: cap.crossing(key, 2.0)[0] for name, key in CRITERIA.items()}
+    _, low_b, high_b = t_interval([10 * d for d in (-1, -0.5, 0, 0.5, 1)], cap.level)
+    assert cross["max_rate"] == pytest.approx(5.0, rel=0.02)  # B's mean crossing, not A's 4
+    assert cross["ci_high"] == pytest.approx((20 + high_b) / 4, rel=0.02)  # B's upper one
+    assert cross["ci_low"] == pytest.approx(4.0, rel=0.02)  # A's promise beats B's
+    assert (20 + low_b) / 4 < 3.0  # B's own promise is far lower
+    assert cap.rule_at(cross["ci_low"], "low") == "A"
+    assert cap.rule_at(cross["max_rate"], "mean") == "B"
+    assert cap.rule_at(cross["ci_high"], "high") == "B"
+
+
+def test_the_json_and_sentence_say_which_rule_the_promise_is_for() -> None:
+    from pnp_twin.studies.capacity import capacity_text
+
+    c = {
+        "choice": {}, "robots": 2, "confidence": 0.95, "target": 80.0, "max_rate": 5.0,
+        "ci_low": 3.98, "ci_high": 8.9, "policy": "A",
+        "policies": {"max_rate": "B", "ci_low": "A", "ci_high": "B"},
+        "search": {"max_rate": "found", "ci_low": "found", "ci_high": "found"},
+    }  # fmt: skip
+    text = capacity_text(c)
+    assert "running A, 3.98 parts/s is met with 95 % confidence" in text
+    assert "(B by the mean)" in text
+
+
+def test_with_two_rules_the_promise_holds_for_its_rule_with_other_seeds(tmp_path: Path) -> None:
+    """Brute force with independent seeds: at the promised flow the rule it names meets the
+    target; well past the upper crossing no rule does."""
+    sc = load_scenario(BASELINE, overrides=LINE)
+    c = run_capacity(sc, tmp_path / "cap", 80.0, 0.95, ["SD", "FIFO"], 4, 1, "simpy")
+    assert c["ci_low"] <= c["max_rate"] <= c["ci_high"]
+    assert c["policy"] == c["policies"]["ci_low"] in ("SD", "FIFO")
+    seeds = replication_seeds(sc.seed + 99, 6)
+    ev = Evaluator(tmp_path / "check", ["SD", "FIFO"], seeds, [], 1, "simpy")
+    runs = ev.runs([with_overrides(sc, {"feeder.rate": c["ci_low"]})], ["promise"])[0]
+    promised = [r["gripping_rate"] for r in runs[c["policy"]]]
+    assert sum(promised) / len(promised) >= 80.0
+    far = round(1.5 * c["ci_high"], 4)
+    best = ev.predict([with_overrides(sc, {"feeder.rate": far})], ["far"])[0]
+    assert best.mean["gripping_rate"] < 80.0  # the best rule's mean, so every rule's

@@ -211,3 +211,55 @@ def test_calibration_ranges_hold_the_truth_of_a_line_fitted_almost_exactly(
     assert lo <= true_bin <= hi, (lo, hi, info["params"][0]["value"])
     noise = info["noise"]
     assert noise["seed_variance"] > 0 and info["near_optimal_margin"] > 1.0
+
+
+def _tight(mean: float) -> list[float]:
+    return [mean - 0.1, mean, mean + 0.1]
+
+
+def test_size_tests_counts_in_a_fixed_sequence_from_the_largest_down() -> None:
+    """Count 2 reaches the target but count 3 misses it: testing every count at the full
+    level and keeping the smallest pass would answer 2 with an error that grows with the
+    counts tried; the fixed sequence (largest count first, stop at the first miss) answers 4."""
+    rows = []
+    for point, (n, g) in enumerate({1: 50.0, 2: 95.0, 3: 85.0, 4: 95.0, 5: 95.0}.items()):
+        for k, v in enumerate(_tight(g)):
+            rows.append(
+                {"point": point, COUNT: n, MTBF: 0.0, "policy": "SD", "replication": k,
+                 "gripping_rate": v, "throughput": 1.0 * n, "efficiency": 1.0,
+                 "utilisation": 1.0, "part_flow": 10.0}
+            )  # fmt: skip
+    df = pd.DataFrame(rows)
+    line = load_scenario("paper_baseline")
+    s = analyse(df, summarise(df, [COUNT, MTBF]), [COUNT, MTBF], line, 90.0, 0.95)
+    assert {r[COUNT]: r["reached"] for r in s["rows"]}[2]  # reached, yet not the answer
+    assert s["answer"] == 4 and s["rule"] == "SD"
+    assert s["selection"]["method"] == "fixed-sequence"
+    assert "fixed-sequence testing" in s["selection"]["text"]
+    assert "from the largest down" in s["selection"]["text"]
+    from pnp_twin.reports.text import sizing_text
+
+    assert s["selection"]["text"] in sizing_text(s)  # the report's method line
+
+
+def test_size_runs_one_fixed_sequence_per_rule_at_the_bonferroni_level() -> None:
+    """Rule A reaches at 2 and 3, misses at 4, reaches at 5: its sequence stops at 5. Rule B
+    reaches from 3 up: the answer is 3 running B (picking the best rule per count would
+    answer 2 running A), and the row at 3 shows B, though A has the higher bound there."""
+    df = _rows(
+        {
+            **{(n, "A"): _tight(g) for n, g in {2: 95.0, 3: 96.0, 4: 85.0, 5: 95.0}.items()},
+            **{(n, "B"): _tight(g) for n, g in {2: 80.0, 3: 93.0, 4: 93.0, 5: 93.0}.items()},
+        }
+    )
+    df["point"] = df[COUNT] - 2  # _rows numbers points for rules given in pairs
+    line = load_scenario("paper_baseline")
+    s = analyse(df, summarise(df, [COUNT, MTBF]), [COUNT, MTBF], line, 90.0, 0.95)
+    assert s["answer"] == 3 and s["rule"] == "B"
+    assert s["selection"]["method"] == "fixed-sequence + bonferroni"
+    assert s["text"].startswith("3 robots running B reach a 90 % gripping rate")
+    at_3 = next(r for r in s["rows"] if r[COUNT] == 3)
+    assert at_3["policy"] == "B" and at_3["reached"]  # the answer's rule, for the report
+    down = s["breakdown"]["n_minus_1"]  # the same rule, one robot fewer
+    assert (down["robots"], down["policy"], down["reached"]) == (2, "B", False)
+    assert down["ci_low"] == pytest.approx(80.0 - 6.205 * 0.1 / math.sqrt(3), abs=1e-3)

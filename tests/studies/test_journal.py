@@ -333,3 +333,34 @@ def test_the_scenarios_sweep_section_only_counts_through_the_plan(plan, tmp_path
     d["scenario"] = {**d["scenario"], "sweep": {"replications": 4}}
     Journal(tmp_path, d).close()  # more replications: the same study
     assert json.loads((tmp_path / "study.json").read_text())["replications"] == 4
+
+
+def _torn_segment(folder: Path) -> None:
+    """A new segment holding only a line cut short by a kill (no newline after it)."""
+    runs = folder / "runs"
+    runs.mkdir(exist_ok=True)
+    number = max((int(p.name[:6]) for p in runs.glob("*.jsonl")), default=0) + 1
+    (runs / f"{number:06d}.jsonl").write_bytes(b'{"run_id": "p000-SD-r00", "point": 0, "gri')
+
+
+def test_a_killed_fresh_start_with_only_a_torn_line_keeps_the_old_study(plan, tmp_path):
+    """A --fresh start killed while writing its first row never ran: the old study comes back
+    (a segment holding only a cut-short line is no run)."""
+    j = opened(tmp_path, plan)
+    spec = plan.specs()[0]
+    j.record(fake_row(spec))
+    j.close()
+    opened(tmp_path, plan, fresh=True).close()
+    _torn_segment(tmp_path)  # the new study's first write, cut short
+    j = opened(tmp_path, plan)
+    assert j.load(spec) is not None and not (tmp_path / REPLACED).exists()
+    j.close()
+
+
+def test_a_folder_with_only_a_torn_line_opens_as_empty(plan, tmp_path):
+    """runs/ with only a cut-short line and no study.json: nothing ran, so it is not refused
+    as "has runs/"; the torn line is dropped and the run done."""
+    _torn_segment(tmp_path)
+    j = opened(tmp_path, plan)
+    assert j.rows(plan.specs()) == [None] * len(plan.specs())
+    j.close()

@@ -106,3 +106,36 @@ def test_mix_json_gives_the_paired_margin_over_the_runner_up(two_robots, tmp_pat
     assert m["diff_mean"] == pytest.approx(gap)
     assert m["ci_low"] <= m["diff_mean"] <= m["ci_high"] and m["n"] == 3
     assert m["distinguishable"] == (m["ci_low"] > 0)
+
+
+def test_mix_takes_the_cost_file_of_sweep_and_size(tmp_path):
+    """``mix --costs FILE``: each mix's total cost in meta.json (the what-if panel's), in
+    mix.json's ranking, the terminal table and the report's table; a bad file is one line."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from pnp_twin.cli import app
+
+    (tmp_path / "costs.toml").write_text(
+        "robot_price = 25000\nbelt_price = 8000\nlost_part_cost = 0.05\nhours = 4000\n"
+    )
+    args = ["mix", "paper_baseline", "--rules", "FIFO,SPT", "-r", "2", "--workers", "1"]
+    for s in ("robots.count=2", "feeder.rate=6", "duration=20", "warmup=2"):
+        args += ["--set", s]
+    out = tmp_path / "mix"
+    runner = CliRunner()
+    done = runner.invoke(app, [*args, "--out", str(out), "--costs", str(tmp_path / "costs.toml")])
+    assert done.exit_code == 0, done.output
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["costs"]["file"] == "costs.toml" and len(meta["costs"]["rows"]) == 4
+    ranked = json.loads((out / "mix.json").read_text())["ranked"]
+    lost = {r["mix"]: r["total_cost"] - 2 * 25000 - 8000 for r in ranked}
+    assert all(v >= 0 for v in lost.values())
+    assert "total cost" in done.stdout
+    html = (out / "report.html").read_text()
+    assert '">Total cost</th>' in html and f"{ranked[0]['total_cost']:,.0f}" in html
+    assert "priced from costs.toml" in html  # the what-if panel's cost
+    bad = runner.invoke(app, [*args, "--out", str(tmp_path / "b"), "--costs", "nope.toml"])
+    assert bad.exit_code == 2 and "--costs" in bad.stderr and len(bad.stderr.splitlines()) == 1
+    assert not (tmp_path / "b").exists()
