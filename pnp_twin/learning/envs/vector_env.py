@@ -62,7 +62,9 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     two, see :mod:`pnp_twin.learning.vector.batch`; give 2 on cores of your own). No rendering.
 
     The first use compiles the step (about a minute of CPU; once per change of the code,
-    then read from numba's on-disk cache); a log line at INFO says so.
+    then read from numba's on-disk cache); when it does, a one-line
+    :class:`~pnp_twin.learning.vector.batch.CompileNotice` warning says so (a cache hit
+    warns nothing).
     ``gymnasium.make_vec("pnp_twin/PickPlace-v0", num_envs=N,
     vectorization_mode="vector_entry_point")`` builds it with the spec's 5000-step cap
     (applied as ``PickPlaceEnv(max_episode_steps=5000)`` applies it: an episode that
@@ -82,7 +84,6 @@ class PickPlaceVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         render_mode: str | None = None,
         **options: Any,
     ) -> None:
-        log.info("compiled vector env: the first use compiles its step (about a minute)")
         from pnp_twin.learning.vector import step as V
         from pnp_twin.learning.vector.batch import LineBatch
 

@@ -19,15 +19,25 @@ threads gave 0.04x, 0.13x, 0.07x and 0.41x the env steps per wall second of one 
 gave 1.4x at 1,024 lines (README). So a batch uses :data:`DEFAULT_THREADS` (one) unless
 ``threads`` asks for more: give ``threads=2`` (or more) only on cores that are yours, with a
 few hundred lines or more.
+
+**First compile.** The first step in a process with no cached machine code for the step
+(a fresh checkout, or any change to this folder's or the engine's sources) compiles it:
+about a minute of CPU. :func:`compile_notice` then warns once (:class:`CompileNotice`,
+a ``UserWarning`` Python shows on stderr) when the compile starts; a step read from
+numba's on-disk cache warns nothing.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 
 import numba
 import numpy as np
+from numba.core import event as numba_event
 
 from pnp_twin.learning.vector import step as V
 from pnp_twin.twin.camera import BeltCamera
@@ -49,8 +59,43 @@ DEFAULT_THREADS = 1
 """numba threads per step unless asked (see the module docstring: never slower than two)."""
 
 
+COMPILE_NOTICE = (
+    "pnp_twin: compiling the vector env's step (about a minute of CPU, once per change of "
+    "the code; later runs read numba's on-disk cache)"
+)
+
+
 class StreamsExhausted(RuntimeError):
     """A line used up its pre-drawn random draws within one step (never expected)."""
+
+
+class CompileNotice(UserWarning):
+    """numba is compiling (not reading from its cache) code the user waits for."""
+
+
+class _CompileListener(numba_event.Listener):
+    """Warns once, when the first compile of the block starts."""
+
+    def __init__(self, message: str) -> None:
+        self.message = message
+        self.warned = False
+
+    def on_start(self, event: numba_event.Event) -> None:
+        if not self.warned:
+            self.warned = True
+            warnings.warn(self.message, CompileNotice, stacklevel=2)
+
+    def on_end(self, event: numba_event.Event) -> None:
+        """Nothing at the end."""
+
+
+@contextmanager
+def compile_notice(message: str = COMPILE_NOTICE) -> Iterator[_CompileListener]:
+    """Within the block, warn ``message`` once (:class:`CompileNotice`) if numba compiles
+    anything: its ``numba:compile`` event, which a load from the on-disk cache never fires."""
+    listener = _CompileListener(message)
+    with numba_event.install_listener("numba:compile", listener):
+        yield listener
 
 
 class LineBatch:
@@ -219,7 +264,11 @@ class LineBatch:
         ``codes`` (n, robots). Each line stepped then runs to its next decision epoch."""
         self.top_up()
         numba.set_num_threads(self.threads)
-        V.step_lines(*self._structs(), codes, mode)
+        if not V.step_lines.signatures:  # the first step of the process: compile or load
+            with compile_notice():
+                V.step_lines(*self._structs(), codes, mode)
+        else:
+            V.step_lines(*self._structs(), codes, mode)
         if not V.statuses_ok(self.gs):
             bad = int(np.flatnonzero(self.gs[:, L.STATUS] != L.ST_EPOCH)[0])
             status = int(self.gs[bad, L.STATUS])
