@@ -92,14 +92,16 @@ class Feeder:
         t, batch = 0.0, max(int(duration * c.rate * 1.1) + 16, 64)
         while t < duration:
             if c.arrival == "poisson":
-                gaps = rng.exponential(mean, batch)
+                times = rng.exponential(mean, batch)
             else:  # normal gaps, truncated at zero (parts cannot overtake)
-                gaps = np.maximum(rng.normal(mean, c.cv * mean, batch), 0.0)
-            times = t + np.cumsum(gaps)
+                times = rng.normal(mean, c.cv * mean, batch)
+                np.maximum(times, 0.0, out=times)
+            np.cumsum(times, out=times)  # in place: one array per chunk, not four
+            times += t  # t + each sum, as ever (x + 0.0 included: it turns -0.0 into 0.0)
             chunks.append(times)
             t = float(times[-1])
-        times = np.concatenate(chunks)
-        return times[times < duration]
+        times = chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
+        return times[: int(np.searchsorted(times, duration, "left"))]  # sorted: those < duration
 
     def _lateral(self, n: int) -> np.ndarray:
         c, rng, w = self.config, self.lateral_rng, self.width
@@ -107,10 +109,11 @@ class Feeder:
             return rng.uniform(0.0, w, n)
         mean = w / 2.0 if c.lateral_mean is None else c.lateral_mean
         out = rng.normal(mean, c.lateral_sd, n)
-        bad = (out < 0.0) | (out > w)
-        while bad.any():  # truncated normal by rejection
-            out[bad] = rng.normal(mean, c.lateral_sd, int(bad.sum()))
-            bad = (out < 0.0) | (out > w)
+        bad = np.flatnonzero((out < 0.0) | (out > w))
+        while len(bad):  # truncated normal by rejection: redraw the bad ones, in order
+            again = rng.normal(mean, c.lateral_sd, len(bad))
+            out[bad] = again
+            bad = bad[(again < 0.0) | (again > w)]
         return out
 
     def _replay(self, duration: float) -> tuple[np.ndarray, np.ndarray, list[str] | None]:

@@ -178,6 +178,7 @@ class KpiTally:
     noops: int  # NooPs started in the window
     welch_parts: np.ndarray  # (WELCH_BINS,) int: parts fed per bin of [0, duration)
     welch_picked: np.ndarray  # (WELCH_BINS,) float: of those, picked
+    spare: np.ndarray | None = None  # a copy of cycles the quantiles may reorder (None: copy)
 
 
 def tally(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) -> KpiTally:
@@ -270,8 +271,12 @@ def tally_kpis(
                 "nominal_capacity": float(nominal[i]),
             }
         )
-    if len(cycles):
-        p50, p95 = np.percentile(cycles, [50, 95]).tolist()
+    if len(cycles):  # on a spare copy when there is one (same values: same quantiles)
+        spare = sums.spare
+        quantiles = np.percentile(
+            cycles if spare is None else spare, [50, 95], overwrite_input=spare is not None
+        )
+        p50, p95 = quantiles.tolist()
     return {
         "gripping_rate": 100.0 * picked / presented if presented else math.nan,
         "parts_presented": presented,

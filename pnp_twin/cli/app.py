@@ -14,6 +14,7 @@ import logging
 import signal
 import sys
 from collections.abc import Callable, Sequence
+from enum import StrEnum
 from typing import Annotated, Any, NoReturn
 
 import typer
@@ -32,7 +33,15 @@ class Terminated(KeyboardInterrupt):
     writes its buffered journal rows and lets go of its folder before it ends."""
 
 
-# Arguments and options shared by the command modules.
+class Engine(StrEnum):
+    """Simulation engines (``twin.run.simulate``): identical events, different speed."""
+
+    simpy = "simpy"
+    fast = "fast"
+    auto = "auto"
+
+
+# Arguments and options shared by the command modules (each command sets the default).
 ScenarioArg = Annotated[
     str,
     typer.Argument(
@@ -59,6 +68,22 @@ WorkersOpt = Annotated[
         help="Parallel runs (1 = in-process). Default: CPU count.",
     ),
 ]
+EngineOpt = Annotated[
+    Engine,
+    typer.Option(
+        "--engine",
+        help="Simulation engine: simpy, fast (compiled) or auto (fast where it can); the "
+        "results are identical.",
+    ),
+]
+FreshOpt = Annotated[
+    bool, typer.Option("--fresh", help="Discard the folder's earlier runs and start over.")
+]
+NoReportOpt = Annotated[bool, typer.Option("--no-report", help="Do not write report.html.")]
+ForceOpt = Annotated[
+    bool, typer.Option("--force", help="Run even above the work limits (twin.budget).")
+]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
 
 
 def fail(message: str, code: int = USER_ERROR) -> NoReturn:

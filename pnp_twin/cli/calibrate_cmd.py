@@ -25,8 +25,18 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from pnp_twin.cli.app import ScenarioArg, SetOpt, app
-from pnp_twin.cli.run_cmd import Engine
+from pnp_twin.cli.app import (
+    Engine,
+    EngineOpt,
+    ForceOpt,
+    FreshOpt,
+    JsonOpt,
+    NoReportOpt,
+    ScenarioArg,
+    SetOpt,
+    WorkersOpt,
+    app,
+)
 from pnp_twin.policies import RULES
 from pnp_twin.studies.calibrate import Problem, calibrate, check_problem
 from pnp_twin.studies.calibrate_eval import EVALS
@@ -217,29 +227,13 @@ def calibrate_cmd(
             help="Grid points per side of each pair of parameters' profile (0: none).",
         ),
     ] = 4,
-    workers: Annotated[
-        int | None,
-        typer.Option("--workers", "-w", min=1, max=1024, help="Parallel runs. Default: CPU count."),
-    ] = None,
+    workers: WorkersOpt = None,
     sets: SetOpt = None,
-    engine: Annotated[
-        Engine,
-        typer.Option(
-            "--engine",
-            help="Simulation engine: simpy, fast (compiled) or auto (fast where it can); "
-            "the fit is the same with each.",
-        ),
-    ] = Engine.auto,
-    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    fresh: Annotated[
-        bool, typer.Option("--fresh", help="Discard the journal, simulate anew.")
-    ] = False,
-    no_report: Annotated[
-        bool, typer.Option("--no-report", help="Do not write report.html.")
-    ] = False,
-    force: Annotated[
-        bool, typer.Option("--force", help="Fit even above the work limits (twin.budget).")
-    ] = False,
+    engine: EngineOpt = Engine.auto,
+    json_out: JsonOpt = False,
+    fresh: FreshOpt = False,
+    no_report: NoReportOpt = False,
+    force: ForceOpt = False,
 ) -> None:
     """Fit scenario fields so the twin reproduces measured points (a twin of your own line)."""
     problem, overrides = _problem(

@@ -14,9 +14,17 @@ from typing import Annotated
 
 import typer
 
-from pnp_twin.cli.app import ScenarioArg, SetOpt, WorkersOpt, app
+from pnp_twin.cli.app import (
+    Engine,
+    EngineOpt,
+    JsonOpt,
+    NoReportOpt,
+    ScenarioArg,
+    SetOpt,
+    WorkersOpt,
+    app,
+)
 from pnp_twin.cli.console import note
-from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.cli.study_folder import check_policies, run_locked
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.design import SUMMARY_FILE, check_design, run_design
@@ -60,9 +68,9 @@ def design_cmd(
     ] = 30,
     sets: SetOpt = None,
     workers: WorkersOpt = None,
-    engine: Annotated[Engine, typer.Option("--engine", help="auto, fast or simpy.")] = Engine.auto,
-    no_report: Annotated[bool, typer.Option("--no-report", help="No report.html.")] = False,
-    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    engine: EngineOpt = Engine.auto,
+    no_report: NoReportOpt = False,
+    json_out: JsonOpt = False,
 ) -> None:
     """The cheapest configuration meeting a target gripping rate with a confidence."""
     sc = load_scenario(scenario, parse_sets(sets or []))

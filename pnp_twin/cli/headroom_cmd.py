@@ -19,9 +19,8 @@ import typer
 from rich import box
 from rich.table import Table
 
-from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.cli.app import Engine, EngineOpt, JsonOpt, ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note, stdout_console
-from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.studies.headroom import BOUND_NOTE, Headroom, HeadroomSettings, check_policies
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets, with_overrides
 from pnp_twin.twin.output import check_out_folder, dumps_json, removed_if_refused
@@ -79,12 +78,8 @@ def headroom(
     workers: Annotated[
         int, typer.Option("--workers", min=1, max=256, help="Worker processes.")
     ] = 1,
-    engine: Annotated[
-        Engine, typer.Option("--engine", help="simpy, fast or auto (same results).")
-    ] = Engine.fast,
-    as_json: Annotated[
-        bool, typer.Option("--json", help="Print the result as one JSON object.")
-    ] = False,
+    engine: EngineOpt = Engine.fast,
+    as_json: JsonOpt = False,
 ) -> None:
     """How much could smarter coordination gain? Best rule, best mix, given policies, the
     lookahead controller and its clairvoyant bound, paired by seed."""

@@ -22,9 +22,8 @@ import typer
 from rich import box
 from rich.table import Table
 
-from pnp_twin.cli.app import INTERRUPTED, ScenarioArg, SetOpt, app, fail
+from pnp_twin.cli.app import INTERRUPTED, Engine, ScenarioArg, SetOpt, app, fail
 from pnp_twin.cli.console import stdout_console
-from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.cli.train_progress import TrainProgress
 from pnp_twin.learning.envs.options import REWARD_WEIGHTS
 from pnp_twin.learning.train_args import TrainArgs, field_help

@@ -20,7 +20,7 @@ import typer
 from rich import box
 from rich.table import Table
 
-from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.cli.app import Engine, ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note, stderr_console, stdout_console
 from pnp_twin.policies import make_policy
 from pnp_twin.twin.budget import check_run
@@ -45,14 +45,6 @@ from pnp_twin.twin.output import (
 from pnp_twin.twin.run import RunResult, simulate
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.trace import read_trace, trace_file, trace_files
-
-
-class Engine(StrEnum):
-    """Simulation engines (``twin.run.simulate``): identical events, different speed."""
-
-    simpy = "simpy"
-    fast = "fast"
-    auto = "auto"
 
 
 class TextFormat(StrEnum):

@@ -36,9 +36,17 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
-from pnp_twin.cli.app import SetOpt, WorkersOpt, app
+from pnp_twin.cli.app import (
+    Engine,
+    EngineOpt,
+    ForceOpt,
+    FreshOpt,
+    NoReportOpt,
+    SetOpt,
+    WorkersOpt,
+    app,
+)
 from pnp_twin.cli.console import note, stderr_console, stdout_console
-from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.studies import Options, build_plan, run_sweep
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.costing import check_costs, read_costs
@@ -88,14 +96,6 @@ AddressOpt = Annotated[
     str | None,
     typer.Option("--address", help="Ray cluster address (default RAY_ADDRESS, else a local Ray)."),
 ]
-EngineOpt = Annotated[
-    Engine,
-    typer.Option(
-        "--engine",
-        help="Simulation engine: auto (compiled where it can; the default), fast or simpy. "
-        "Results are identical; results.csv records which ran.",
-    ),
-]
 RepsOpt = Annotated[
     str | None,
     typer.Option(
@@ -122,10 +122,6 @@ PolicyOpt = Annotated[
     list[str] | None,
     typer.Option("--policy", "-p", help="Policy to compare (repeatable; default sweep's)."),
 ]
-FreshOpt = Annotated[
-    bool, typer.Option("--fresh", help="Discard the folder's earlier runs and start over.")
-]
-NoReportOpt = Annotated[bool, typer.Option("--no-report", help="Do not write report.html.")]
 CostsOpt = Annotated[
     Path | None,
     typer.Option(
@@ -133,9 +129,6 @@ CostsOpt = Annotated[
         metavar="FILE",
         help="Cost file (TOML, as design's): the what-if panel shows each point's total cost.",
     ),
-]
-ForceOpt = Annotated[
-    bool, typer.Option("--force", help="Run even above the work limits (twin.budget).")
 ]
 
 

@@ -15,9 +15,8 @@ import typer
 from rich import box
 from rich.table import Table
 
-from pnp_twin.cli.app import app
+from pnp_twin.cli.app import Engine, EngineOpt, app
 from pnp_twin.cli.console import note, stdout_console
-from pnp_twin.cli.run_cmd import Engine
 from pnp_twin.twin.output import dumps_json
 
 task_app = typer.Typer(
@@ -91,9 +90,7 @@ def task_score(
     workers: Annotated[
         int, typer.Option("--workers", min=1, max=256, help="Worker processes.")
     ] = 1,
-    engine: Annotated[
-        Engine, typer.Option("--engine", help="simpy, fast or auto (same results).")
-    ] = Engine.fast,
+    engine: EngineOpt = Engine.fast,
     duration: Annotated[
         float | None,
         typer.Option("--duration", min=1.0, hidden=True, help="Shorter runs (tests only)."),

@@ -12,6 +12,7 @@ import pytest
 from pnp_twin.policies import make_policy
 from pnp_twin.twin import simulate
 from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.fast import engine
 from pnp_twin.twin.fast import layout as L
 from pnp_twin.twin.fast.engine import FastLine
 from pnp_twin.twin.loader import load_scenario
@@ -95,6 +96,25 @@ def test_a_stream_running_out_under_a_python_policy_is_grown_not_dropped(
     down = lambda r: int((r.spans.state == "down").sum())  # noqa: E731
     assert down(mix) == down(want)  # the rule mix's path grows the stream: fine
     assert down(got) == down(want)  # 150 in SimPy (12 when the stream was lost)
+
+
+def test_the_span_buffer_grows_in_place(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A first guess of 16 spans: advance grows the buffer in place (resized), never as a
+    longer copy beside the old one (twice the memory at the peak: a reference to the buffer
+    held across the kernel call did that), and the spans match a run with room enough."""
+    copies: list[int] = []
+    longer = engine._longer
+    monkeypatch.setattr(engine, "_longer", lambda a, rows: copies.append(rows) or longer(a, rows))
+    sc = load_scenario("paper_baseline", {"duration": 60.0, "warmup": 0.0})
+    small, whole = FastLine(sc, rules=["SD"], seed=1), FastLine(sc, rules=["SD"], seed=1)
+    small.start(16, *small._rooms()[1:])
+    whole.start(*whole._rooms())
+    assert small.advance(small.end_at) == whole.advance(whole.end_at) == L.ST_OK
+    k = int(whole.gs[L.NSPANS])
+    assert k > 16 and int(small.gs[L.NSPANS]) == k and len(small.sp_i) >= k
+    assert copies == []
+    np.testing.assert_array_equal(small.sp_i[:k], whole.sp_i[:k])
+    np.testing.assert_array_equal(small.sp_f[:k], whole.sp_f[:k])
 
 
 def _held(sc, epochs: int) -> FastLine:  # type: ignore[no-untyped-def]

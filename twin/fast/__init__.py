@@ -11,7 +11,9 @@ the policy gets the SimPy gateway's own :class:`~twin.decision.Decision` (and, t
 ``attach``, a :class:`~twin.fast.belt_view.BeltView` of the belt), and the run resumes.
 
 Modules: :mod:`~twin.fast.mathlib` (CPython's float operations, bit for bit),
-:mod:`~twin.fast.layout` (state array columns), :mod:`~twin.fast.kernel` (the event loop),
+:mod:`~twin.fast.layout` (state array columns), :mod:`~twin.fast.structs` (the arrays in
+five named structures: parameters, state, records, streams, scratch, as every kernel function
+takes them), :mod:`~twin.fast.kernel` (the event loop),
 :mod:`~twin.fast.calendar` (its event calendar), :mod:`~twin.fast.robot` and
 :mod:`~twin.fast.gateway` (the robot's steps, the gateway's epochs),
 :mod:`~twin.fast.tally` (the KPIs' sums in one compiled pass),

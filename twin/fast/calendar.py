@@ -2,7 +2,8 @@
 
 SimPy's event queue orders events by (time, priority, creation number). Every robot has at
 most one live wake-up (a timeout, a release of its decision hold or a t_any interruption),
-kept in its row of the state arrays (:func:`_schedule`); a loser tree over the robots
+kept in its row of the state arrays (:func:`_schedule`; ``s`` is the run's
+:class:`~twin.fast.structs.State`); a loser tree over the robots
 (:func:`_calendar`) gives the first in SimPy's order, and settles again in log2(N) matches
 when that robot's wake-up changes (:func:`_replay`), instead of a scan of every robot.
 """
@@ -25,7 +26,8 @@ from pnp_twin.twin.fast.layout import (
 
 
 @compiled(inline=True)
-def _schedule(fs, ist, gs, r, at, prio, pc):
+def _schedule(s, r, at, prio, pc):
+    fs, ist, gs = s.fs, s.ist, s.gs
     fs[r, WAKE] = at
     ist[r, WPRIO] = prio
     ist[r, WSEQ] = gs[SEQ]
@@ -75,7 +77,7 @@ def _store(fs, k, robot, wake):
 
 
 @compiled()
-def _calendar(fs, ist):
+def _calendar(s):
     """The event calendar afresh: a loser tree over the robots. Inner node k (1 <= k < m)
     holds the loser of the match between the winners of its two subtrees (the robot and its
     wake-up time, side by side in row k // 2 of ``fs``: columns CAL + k % 2 and
@@ -83,6 +85,7 @@ def _calendar(fs, ist):
     comes first, -1 when none. When the winner's wake-up changes, :func:`_replay` settles
     the calendar in log2(N) matches, one row each, instead of a scan of every robot.
     Returns the width m (the leaves' count, a power of two >= the robots)."""
+    fs, ist = s.fs, s.ist
     m = 1
     while m < ist.shape[0]:
         m *= 2
@@ -110,8 +113,9 @@ def _calendar(fs, ist):
 
 
 @compiled(inline=True)
-def _replay(fs, ist, m, r):
+def _replay(s, m, r):
     """The wake-up of robot r, the calendar's winner, changed (scheduled again, or not)."""
+    fs, ist = s.fs, s.ist
     w, ww = _leaf(fs, ist, r)
     k = (m + r) >> 1
     while k >= 1:
@@ -125,6 +129,6 @@ def _replay(fs, ist, m, r):
 
 
 @compiled(inline=True)
-def _first(fs):
+def _first(s):
     """The robot whose wake-up comes first, -1 when none."""
-    return int(fs[0, CAL])
+    return int(s.fs[0, CAL])

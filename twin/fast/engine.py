@@ -40,6 +40,7 @@ from pnp_twin.twin.fast.kernel import (
     run_events,
     start_robots,
 )
+from pnp_twin.twin.fast.structs import Params, Records, Scratch, State, Streams
 from pnp_twin.twin.feeder import Feeder
 from pnp_twin.twin.kpis import SPAN_STATES, PartRecords, SpanRecords, tally_kpis
 from pnp_twin.twin.plan import ARRIVALS, FIRST_ROBOT, LATERAL, POLICY, LinePlan
@@ -80,10 +81,7 @@ def _robot_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray]:
     return fp, ip
 
 
-STATE = (
-    "ip", "fs", "ist", "gs", "gf", "holder", "left_at", "rec_i", "rec_f", "sp_i", "sp_f",
-    "counts", "_c_i", "_c_f",
-)  # fmt: skip
+STATE = ("ip", *State._fields, *Records._fields, "_c_i", "_c_f")
 """The arrays a run changes as it goes (``ip``'s rule codes in hold mode; the rest is
 parameters and pre-drawn streams, which only grow by new arrays)."""
 
@@ -264,14 +262,14 @@ class FastLine:
         self.holder = np.full(n_parts, -1, dtype=np.int64)
         self.left_at = np.full(n_parts, math.inf)
         self.rec_i = np.full((n_parts, 2), -1, dtype=np.int64)
-        self.rec_f = np.full((n_parts, 4), math.nan)
-        self.rec_f[:, 3] = 0.0
+        self.rec_f = np.empty((n_parts, 4))
+        self.rec_f[:] = (math.nan, math.nan, math.nan, 0.0)  # not decided, picked, placed
         self.sp_i = np.zeros((span_room, 2), dtype=np.int32)  # robot, state
         self.sp_f = np.zeros((span_room, 2))  # start, end
         self.counts = np.zeros((n, len(L.RULE_NAMES)), dtype=np.int64)
         self._c_i = np.empty(n_parts + 1, dtype=np.int64)  # scratch: a decision's candidates
         self._c_f = np.empty((n_parts + 1, 3))
-        start_robots(self.fp, self.ip, self.fs, self.ist, self.gs, self._exps)
+        start_robots(self.params, self.state, self.streams)
         self.extra_rules, self.extra_counts = [], Counter()
         if self.external is not None:  # as Line: reset with the policy stream, then attach
             self.external.reset(self.specs, np.random.default_rng(self._policy_seed))
@@ -287,12 +285,9 @@ class FastLine:
         status: 0 (reached ``until``), ST_CHOOSE (an external policy's decision: call
         :meth:`answer`) or ST_EPOCH (hold mode: call :meth:`release`)."""
         while True:
-            status = run_events(
-                self.fp, self.ip, self.gp, self.gi, self.fs, self.ist, self.gs, self.gf,
-                self.fed, self.y, self.holder, self.left_at, self.rec_i, self.rec_f,
-                self.sp_i, self.sp_f, self.counts, self._siro, self._exps, self._c_i,
-                self._c_f, min(until, self.end_at),
-            )  # fmt: skip
+            # the structures live only through the call: _grow resizes the span buffer in
+            # place only when nothing else refers to it
+            status = run_events(*self.structs, min(until, self.end_at))
             if status != L.ST_ROOM:
                 return int(status)
             self._grow()
@@ -318,10 +313,7 @@ class FastLine:
             )
         rule = getattr(self.external, "last_rule", None)
         self.extra_counts[(r, rule or "?")] += 1
-        choose_external(
-            self.fp, self.gp, self.fs, self.ist, self.gs, self.holder, self.left_at,
-            self._c_i, self._c_f, k, self._code(rule),
-        )  # fmt: skip
+        choose_external(self.params, self.state, self.scratch, k, self._code(rule))
 
     def _code(self, rule: str | None) -> int:
         """The rule code recorded with a pick: RULE_NAMES' index, or an extra name's."""
@@ -342,7 +334,7 @@ class FastLine:
         """Gateway.release: set each robot's rule code (when given), resume the pending ones."""
         if rules is not None:
             self.ip[:, L.RULE] = rules
-        release(self.fs, self.ist, self.gs, self.gf[L.NOW])
+        release(self.state)
 
     def finish(self) -> int:
         """End the run at ``end_at`` (after :meth:`advance` to it): open spans are closed."""
@@ -350,7 +342,7 @@ class FastLine:
         if room and n_spans + len(self.specs) > room:  # one more span per robot at most
             self.gs[L.ROOMFOR] = L.ROOM_SPANS
             self._grow()
-        status = close_open_spans(self.ist, self.fs, self.gs, self.sp_i, self.sp_f, self.end_at)
+        status = close_open_spans(self.state, self.records, self.end_at)
         self.gf[L.NOW] = self.end_at
         return int(status)
 
@@ -365,6 +357,32 @@ class FastLine:
         other._siro_rng = copy.deepcopy(self._siro_rng)
         other._exp_rngs = copy.deepcopy(self._exp_rngs)
         return other
+
+    # -- the kernel's structures (views of the arrays above, built for each call) ----------
+    @property
+    def params(self) -> Params:
+        return Params(self.fp, self.ip, self.gp, self.gi)
+
+    @property
+    def state(self) -> State:
+        return State(self.fs, self.ist, self.gs, self.gf, self.holder, self.left_at, self.counts)
+
+    @property
+    def records(self) -> Records:
+        return Records(self.rec_i, self.rec_f, self.sp_i, self.sp_f)
+
+    @property
+    def streams(self) -> Streams:
+        return Streams(self.fed, self.y, self._siro, self._exps)
+
+    @property
+    def scratch(self) -> Scratch:
+        return Scratch(self._c_i, self._c_f)
+
+    @property
+    def structs(self) -> tuple[Params, State, Records, Streams, Scratch]:
+        """All five, in the order the kernel takes them."""
+        return self.params, self.state, self.records, self.streams, self.scratch
 
     # -- records ---------------------------------------------------------------------------
     def kpi_records(self) -> tuple[PartRecords, SpanRecords]:
@@ -395,8 +413,7 @@ class FastLine:
 
         names = (*L.RULE_NAMES, *self.extra_rules)
         n_spans, n = int(self.gs[L.NSPANS]), len(self.specs)
-        arrays = (self.fed, self.rec_i, self.rec_f, self.sp_i, self.sp_f)
-        sums = tally(*arrays, n_spans, n, len(names), warmup, self.duration)
+        sums = tally(self.fed, self.records, n_spans, n, len(names), warmup, self.duration)
         return tally_kpis(sums, names, self.specs, warmup, self.duration)
 
     def recorder(self) -> Recorder:

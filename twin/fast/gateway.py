@@ -2,7 +2,8 @@
 
 A free robot reports here under t_all and t_any (and in hold mode); an epoch opens for the
 robots flagged in a column of ``ist``: they are scheduled in robot order (upstream first), or
-in hold mode marked pending until the caller answers (:func:`release`).
+in hold mode marked pending until the caller answers (:func:`release`). ``p`` and ``s`` are
+the run's parameters and state (:mod:`twin.fast.structs`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from pnp_twin.twin.fast.layout import (
     HOLD,
     MASK,
     NORMAL,
+    NOW,
     NPENDING,
     PC,
     PC_HELD,
@@ -37,34 +39,38 @@ from pnp_twin.twin.fast.layout import (
 
 
 @compiled()
-def _open(fs, ist, gi, gs, col, now):
+def _open(p, s, col, now):
     """Open an epoch for the robots flagged in column ``col`` of ``ist`` (in hold mode: mark
     them pending; :func:`release` resumes them once the caller has set their rules)."""
+    ist, gs = s.ist, s.gs
     gs[EPOCHS] += 1
     for i in range(ist.shape[0]):  # in robot order, so upstream robots claim first
         if ist[i, col]:
             ist[i, WAITING] = 0
-            if gi[HOLD]:
+            if p.gi[HOLD]:
                 ist[i, PENDING] = 1
                 gs[NPENDING] += 1
             else:
-                _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
+                _schedule(s, i, now, NORMAL, PC_HELD)
 
 
 @compiled()
-def release(fs, ist, gs, now):
-    """Gateway.release: resume the pending robots, in robot order."""
+def release(s):
+    """Gateway.release: resume the pending robots, in robot order, now."""
+    ist, gs = s.ist, s.gs
+    now = s.gf[NOW]
     for i in range(ist.shape[0]):
         if ist[i, PENDING]:
             ist[i, PENDING] = 0
-            _schedule(fs, ist, gs, i, now, NORMAL, PC_HELD)
+            _schedule(s, i, now, NORMAL, PC_HELD)
     gs[NPENDING] = 0
     if gs[STATUS] == ST_EPOCH:
         gs[STATUS] = 0
 
 
 @compiled()
-def _maybe_all(fs, ist, gi, gs, now):
+def _maybe_all(p, s, now):
+    ist = s.ist
     n = ist.shape[0]
     some = False
     for i in range(n):
@@ -75,7 +81,7 @@ def _maybe_all(fs, ist, gi, gs, now):
     if some:
         for i in range(n):
             ist[i, MASK] = 1 - ist[i, DOWN]
-        _open(fs, ist, gi, gs, MASK, now)
+        _open(p, s, MASK, now)
 
 
 @compiled(inline=True)
@@ -91,14 +97,15 @@ def _expected_waiting(ist):
 
 
 @compiled()
-def _join_any(fs, ist, gi, gs, r, now):
+def _join_any(p, s, r, now):
+    fs, ist = s.fs, s.ist
     n = ist.shape[0]
     some, _ = _expected_waiting(ist)
     if not some:
         ist[r, EXPECTED] = 1
         for o in range(n):
             if o != r and ist[o, CLAIMED] >= 0 and fs[o, APPROACH] > now:
-                _schedule(fs, ist, gs, o, now, URGENT, PC_INTERRUPT)
+                _schedule(s, o, now, URGENT, PC_INTERRUPT)
                 ist[o, EXPECTED] = 1
     else:
         ist[r, EXPECTED] = 1
@@ -107,36 +114,38 @@ def _join_any(fs, ist, gi, gs, r, now):
         for i in range(n):
             ist[i, MASK] = ist[i, EXPECTED]
             ist[i, EXPECTED] = 0
-        _open(fs, ist, gi, gs, MASK, now)
+        _open(p, s, MASK, now)
 
 
 @compiled()
-def _down(fs, ist, gi, gs, r, now):
+def _down(p, s, r, now):
+    ist = s.ist
     ist[r, WAITING] = 0
     ist[r, EXPECTED] = 0
-    if gi[SCHEME] == T_ALL:
-        _maybe_all(fs, ist, gi, gs, now)
-    elif gi[SCHEME] == T_ANY:
+    if p.gi[SCHEME] == T_ALL:
+        _maybe_all(p, s, now)
+    elif p.gi[SCHEME] == T_ANY:
         some, sub = _expected_waiting(ist)
         if some and sub:  # the epoch opens, and the next free robot starts a new one
             for i in range(ist.shape[0]):
                 ist[i, MASK] = ist[i, EXPECTED]
                 ist[i, EXPECTED] = 0
-            _open(fs, ist, gi, gs, MASK, now)
+            _open(p, s, MASK, now)
 
 
 @compiled()
-def _free(fs, ist, gi, gs, r, now):
+def _free(p, s, r, now):
+    ist, gi = s.ist, p.gi
     ist[r, PC] = PC_HELD
     ist[r, ACTIVE] = 0
-    fs[r, WAIT0] = now
+    s.fs[r, WAIT0] = now
     ist[r, WAITING] = 1
     if gi[SCHEME] == T_CONTINUE:  # in hold mode only: an epoch of one
         for i in range(ist.shape[0]):
             ist[i, MASK] = 0
         ist[r, MASK] = 1
-        _open(fs, ist, gi, gs, MASK, now)
+        _open(p, s, MASK, now)
     elif gi[SCHEME] == T_ALL:
-        _maybe_all(fs, ist, gi, gs, now)
+        _maybe_all(p, s, now)
     else:
-        _join_any(fs, ist, gi, gs, r, now)
+        _join_any(p, s, r, now)

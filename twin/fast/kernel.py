@@ -8,8 +8,9 @@ machine, its steps in :mod:`twin.fast.robot`, the gateway's epochs in
 events, so equal-time events resolve the same way; the arithmetic is written operation for
 operation as in the twin (see :mod:`twin.fast.mathlib`).
 
-State lives in plain arrays (see :mod:`twin.fast.layout` for the column names), so a run can
-be copied at any point and continued.
+State lives in plain arrays, grouped in five structures (:mod:`twin.fast.structs`: ``p``
+parameters, ``s`` state, ``rec`` records, ``st`` streams, ``sc`` scratch; column names in
+:mod:`twin.fast.layout`), so a run can be copied at any point and continued.
 """
 
 from __future__ import annotations
@@ -103,15 +104,16 @@ __all__ = ["choose_external", "close_open_spans", "release", "run_events", "star
 
 
 @compiled(inline=True)
-def _short_of_room(ip, ist, gs, sp_i, siro, exps, r):
+def _short_of_room(p, s, rec, st, r):
     """Before robot r's event: would a buffer or pre-drawn stream it may use run out? Then
     stop with ST_ROOM (the state untouched), so the caller can grow it and carry on."""
+    ip, gs, sp_i = p.ip, s.gs, rec.sp_i
     room = -1
     if sp_i.shape[0] > 0 and gs[NSPANS] + SPAN_MARGIN > sp_i.shape[0]:
         room = ROOM_SPANS
-    elif ip[r, RULE] == SIRO and gs[SIROIDX] + SIRO_MARGIN > siro.shape[0]:
+    elif ip[r, RULE] == SIRO and gs[SIROIDX] + SIRO_MARGIN > st.siro.shape[0]:
         room = ROOM_SIRO
-    elif ip[r, FAILMODE] == EXPONENTIAL and ist[r, EXPIDX] + EXP_MARGIN > exps.shape[1]:
+    elif ip[r, FAILMODE] == EXPONENTIAL and s.ist[r, EXPIDX] + EXP_MARGIN > st.exps.shape[1]:
         room = ROOM_EXPS
     if room < 0:
         return False
@@ -122,26 +124,26 @@ def _short_of_room(ip, ist, gs, sp_i, siro, exps, r):
 
 
 @compiled()
-def run_events(
-    fp, ip, gp, gi, fs, ist, gs, gf, fed, ys, holder, left_at,
-    rec_i, rec_f, sp_i, sp_f, counts, siro, exps, c_i, c_f, stop_at,
-):  # fmt: skip
+def run_events(p, s, rec, st, sc, stop_at):
     """Process events with time < stop_at; returns the status: 0 (reached stop_at),
     ST_CHOOSE, ST_EPOCH, ST_ROOM (call again once grown) or, should an event still run out
     of room, ST_SPANS / ST_SIRO / ST_EXPS."""
+    fp, gp, gi = p.fp, p.gp, p.gi
+    fs, ist, gs, gf = s.fs, s.ist, s.gs, s.gf
+    rec_i, rec_f = rec.rec_i, rec.rec_f
     v = gp[V]
     scheme = gi[SCHEME]
     capacity = gi[CAPACITY]
     waits = scheme != T_CONTINUE or gi[HOLD]  # a free robot reports to the gateway
-    m = _calendar(fs, ist)  # the callers may have scheduled robots since the last call
+    m = _calendar(s)  # the callers may have scheduled robots since the last call
     while gs[STATUS] == 0:
-        r = _first(fs)  # the robot whose wake-up comes first (-1: none)
+        r = _first(s)  # the robot whose wake-up comes first (-1: none)
         if gs[NPENDING] > 0 and (r < 0 or fs[r, WAKE] > gf[NOW]):
             gs[STATUS] = ST_EPOCH  # the epoch's instant is over: the caller answers it
             break
         if r < 0 or fs[r, WAKE] >= stop_at:
             break
-        if _short_of_room(ip, ist, gs, sp_i, siro, exps, r):
+        if _short_of_room(p, s, rec, st, r):
             break  # ST_ROOM: the caller grows the buffer or stream and calls again
         now = fs[r, WAKE]
         gf[NOW] = now
@@ -153,10 +155,10 @@ def run_events(
         if pc == PC_START:
             top = True
         elif pc == PC_NOOP:
-            _span(gs, sp_i, sp_f, r, S_NOOP, fs[r, T0], now)
+            _span(s, rec, r, S_NOOP, fs[r, T0], now)
             top = True
         elif pc == PC_HELD:
-            _span(gs, sp_i, sp_f, r, S_WAIT, fs[r, WAIT0], now)
+            _span(s, rec, r, S_WAIT, fs[r, WAIT0], now)
             decide = True
         elif pc == PC_APPROACH:  # gripped: move to the bin and place
             part = ist[r, PART]
@@ -186,20 +188,20 @@ def run_events(
             rec_f[part, 2] = done
             if blocked > 0.0:
                 rec_f[part, 3] = blocked
-                _span(gs, sp_i, sp_f, r, S_BLOCKED, arrive, arrive + blocked)
-            _schedule(fs, ist, gs, r, now + (done - now), NORMAL, PC_PLACE)
+                _span(s, rec, r, S_BLOCKED, arrive, arrive + blocked)
+            _schedule(s, r, now + (done - now), NORMAL, PC_PLACE)
         elif pc == PC_PLACE:
             fs[r, TOOLX] = fp[r, BX]
             fs[r, TOOLY] = fp[r, BY]
             top = True
         elif pc == PC_INTERRUPT:
             part = ist[r, PART]
-            holder[part] = FREE
+            s.holder[part] = FREE
             gs[RELEASES] += 1
-            left_at[part] = math.inf
+            s.left_at[part] = math.inf
             ist[r, CLAIMED] = -1
             t0 = fs[r, T0]
-            _span(gs, sp_i, sp_f, r, S_INTERRUPTED, t0, now)
+            _span(s, rec, r, S_INTERRUPTED, t0, now)
             x, y = position_along(
                 fs[r, TOOLX], fs[r, TOOLY], fs[r, TX], fs[r, TY], now - t0, fp[r, VR], fp[r, ACC]
             )
@@ -207,42 +209,39 @@ def run_events(
             fs[r, TOOLY] = y
             top = True
         elif pc == PC_DOWN:
-            _span(gs, sp_i, sp_f, r, S_DOWN, fs[r, DOWN0], now)
+            _span(s, rec, r, S_DOWN, fs[r, DOWN0], now)
             ist[r, DOWN] = 0
-            fs[r, NEXTFAIL] = now + _draw(fp, ip, ist, gs, exps, r, MTBF)
+            fs[r, NEXTFAIL] = now + _draw(p, s, st, r, MTBF)
             if waits:
-                _free(fs, ist, gi, gs, r, now)
+                _free(p, s, r, now)
             else:
                 decide = True
         if top:
             if now >= fs[r, NEXTFAIL]:  # a due failure takes effect now
                 ist[r, DOWN] = 1
-                _down(fs, ist, gi, gs, r, now)
+                _down(p, s, r, now)
                 fs[r, DOWN0] = now
-                _schedule(
-                    fs, ist, gs, r, now + _draw(fp, ip, ist, gs, exps, r, MTTR), NORMAL, PC_DOWN
-                )
+                _schedule(s, r, now + _draw(p, s, st, r, MTTR), NORMAL, PC_DOWN)
             elif waits:
-                _free(fs, ist, gi, gs, r, now)
+                _free(p, s, r, now)
             else:
                 decide = True
         if decide:
-            _decide(
-                fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i, c_f, r, now, v
-            )
+            _decide(p, s, st, sc, r, now, v)
         if gs[SEQ] == seq or (gs[SEQ] == seq + 1 and ist[r, ACTIVE] and ist[r, WSEQ] == seq):
-            _replay(fs, ist, m, r)  # only robot r's wake-up changed
+            _replay(s, m, r)  # only robot r's wake-up changed
         else:  # the gateway scheduled other robots (an epoch opened, approaches interrupted)
-            _calendar(fs, ist)
+            _calendar(s)
     return gs[STATUS]
 
 
 @compiled()
-def close_open_spans(ist, fs, gs, sp_i, sp_f, now):
+def close_open_spans(s, rec, now):
     """Recorder.close_open_spans: a wait or repair still under way at the end counts."""
+    ist, fs, gs = s.ist, s.fs, s.gs
     for r in range(ist.shape[0]):
         if ist[r, PC] == PC_HELD:
-            _span(gs, sp_i, sp_f, r, S_WAIT, fs[r, WAIT0], now)
+            _span(s, rec, r, S_WAIT, fs[r, WAIT0], now)
         elif ist[r, PC] == PC_DOWN:
-            _span(gs, sp_i, sp_f, r, S_DOWN, fs[r, DOWN0], now)
+            _span(s, rec, r, S_DOWN, fs[r, DOWN0], now)
     return gs[STATUS]

@@ -3,7 +3,9 @@
 Candidates (parts whose interception point lies in the workspace), the dispatching rules
 (SIRO replaying numpy's ``Generator.integers`` on pre-drawn draws), a decision (a pick or a
 NooP), claims, breakdown draws and state spans; the event loop (:mod:`twin.fast.kernel`)
-runs them at the robot's wake-ups.
+runs them at the robot's wake-ups. Functions take the run's structures
+(:mod:`twin.fast.structs`): ``p`` parameters, ``s`` state, ``rec`` records, ``st`` streams,
+``sc`` scratch.
 """
 
 from __future__ import annotations
@@ -114,7 +116,8 @@ def _bisect(a, x, right, hint):
 
 
 @compiled(inline=True)
-def _span(gs, sp_i, sp_f, r, state, start, end):
+def _span(s, rec, r, state, start, end):
+    sp_i, sp_f, gs = rec.sp_i, rec.sp_f, s.gs
     if end > start and sp_i.shape[0] > 0:  # a run given no span buffer records no spans
         k = gs[NSPANS]
         if k >= sp_i.shape[0]:
@@ -128,22 +131,24 @@ def _span(gs, sp_i, sp_f, r, state, start, end):
 
 
 @compiled(inline=True)
-def _draw(fp, ip, ist, gs, exps, r, col):
-    mean = fp[r, col]
-    if ip[r, FAILMODE] == FIXED:
+def _draw(p, s, st, r, col):
+    mean = p.fp[r, col]
+    if p.ip[r, FAILMODE] == FIXED:
         return mean
-    k = ist[r, EXPIDX]
-    if k >= exps.shape[1]:
-        gs[STATUS] = ST_EXPS
+    k = s.ist[r, EXPIDX]
+    if k >= st.exps.shape[1]:
+        s.gs[STATUS] = ST_EXPS
         return math.inf
-    ist[r, EXPIDX] = k + 1
-    return mean * exps[r, k]
+    s.ist[r, EXPIDX] = k + 1
+    return mean * st.exps[r, k]
 
 
 @compiled()
-def _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f):
+def _candidates(p, s, st, sc, r, now):
     """Robot._candidates: unclaimed parts whose interception point lies in [a, b]."""
-    v = gp[V]
+    fp, fs, ist, fed, ys, holder = p.fp, s.fs, s.ist, st.fed, st.ys, s.holder
+    c_i, c_f = sc.c_i, sc.c_f
+    v = p.gp[V]
     px = fs[r, TOOLX]
     py = fs[r, TOOLY]
     a = fp[r, BA]
@@ -211,15 +216,16 @@ def _lemire(siro, gs, n):
 
 
 @compiled()
-def _choose(fp, ip, gp, gs, siro, r, n, c_f):
+def _choose(p, s, st, sc, r, n):
     """policies.rules applied to the candidates (furthest downstream first)."""
-    rule = ip[r, RULE]
+    fp, gp, c_f = p.fp, p.gp, sc.c_f
+    rule = p.ip[r, RULE]
     if rule == FIFO:
         return 0
     if rule == LIFO:
         return n - 1
     if rule == SIRO:
-        return _lemire(siro, gs, n)
+        return _lemire(st.siro, s.gs, n)
     if rule == SD or rule == LD:
         best = 0
         for k in range(1, n):
@@ -270,15 +276,16 @@ def _next_entry(gp, fed, holder, now, x, hint, floor):
 
 
 @compiled()
-def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i, c_f, r, now, v):
+def _decide(p, s, st, sc, r, now, v):
     """Look at the candidates: pick one (claim it, start the approach) or take a NooP."""
-    n = _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f)
+    fp, gp, fs, ist, gs = p.fp, p.gp, s.fs, s.ist, s.gs
+    n = _candidates(p, s, st, sc, r, now)
     fs[r, T0] = now
     if n == 0:
-        counts[r, NOOP] += 1
+        s.counts[r, NOOP] += 1
         floor = ist[r, NOOPPART] if ist[r, NOOPSTAMP] == gs[RELEASES] else 0
         wait, ist[r, NOOPPART] = _next_entry(
-            gp, fed, holder, now, fp[r, BA], ist[r, HINT_HI], floor
+            gp, st.fed, s.holder, now, fp[r, BA], ist[r, HINT_HI], floor
         )
         ist[r, NOOPSTAMP] = gs[RELEASES]
         tick = gp[TICK]
@@ -286,35 +293,37 @@ def _decide(fp, ip, gp, fs, ist, gs, fed, ys, holder, left_at, counts, siro, c_i
             wait = tick
         if now + wait <= now:  # too small to move the clock: a NooP must let time pass
             wait = tick
-        _schedule(fs, ist, gs, r, now + wait, NORMAL, PC_NOOP)
+        _schedule(s, r, now + wait, NORMAL, PC_NOOP)
         return
-    rule = ip[r, RULE]
+    rule = p.ip[r, RULE]
     if rule == EXTERNAL:  # the caller chooses: choose_external resumes
         gs[STATUS] = ST_CHOOSE
         gs[DROBOT] = r
         gs[DN] = n
         return
-    k = _choose(fp, ip, gp, gs, siro, r, n, c_f)
-    counts[r, rule] += 1
-    _claim(fs, ist, holder, left_at, c_i, c_f, r, now, v, k, rule)
-    _schedule(fs, ist, gs, r, now + (fs[r, TAPP] + fp[r, PICK]), NORMAL, PC_APPROACH)
+    k = _choose(p, s, st, sc, r, n)
+    s.counts[r, rule] += 1
+    _claim(s, sc, r, now, v, k, rule)
+    _schedule(s, r, now + (fs[r, TAPP] + fp[r, PICK]), NORMAL, PC_APPROACH)
 
 
 @compiled()
-def choose_external(fp, gp, fs, ist, gs, holder, left_at, c_i, c_f, k, rule):
+def choose_external(p, s, sc, k, rule):
     """The caller's answer to ST_CHOOSE: candidate ``k``, recorded under rule code ``rule``
     (a code of layout.RULE_NAMES, a caller's own code above them, or NO_RULE)."""
+    fs, gs = s.fs, s.gs
     r = gs[DROBOT]
     now = fs[r, T0]
-    _claim(fs, ist, holder, left_at, c_i, c_f, r, now, gp[V], k, rule)
-    _schedule(fs, ist, gs, r, now + (fs[r, TAPP] + fp[r, PICK]), NORMAL, PC_APPROACH)
+    _claim(s, sc, r, now, p.gp[V], k, rule)
+    _schedule(s, r, now + (fs[r, TAPP] + p.fp[r, PICK]), NORMAL, PC_APPROACH)
     gs[STATUS] = 0
 
 
 @compiled(inline=True)
-def _claim(fs, ist, holder, left_at, c_i, c_f, r, now, v, k, rule):
+def _claim(s, sc, r, now, v, k, rule):
     """Claim candidate ``k`` for the approach (Robot.working after the policy's answer)."""
-    part = c_i[k]
+    fs, ist, holder, left_at, c_f = s.fs, s.ist, s.holder, s.left_at, sc.c_f
+    part = sc.c_i[k]
     t = c_f[k, 2]
     fs[r, TX] = c_f[k, 0] + v * t
     fs[r, TY] = c_f[k, 1]
@@ -329,8 +338,9 @@ def _claim(fs, ist, holder, left_at, c_i, c_f, r, now, v, k, rule):
 
 
 @compiled()
-def start_robots(fp, ip, fs, ist, gs, exps):
+def start_robots(p, s, st):
     """Robot.__init__ and Line start: first failures drawn, processes initialised in order."""
+    fp, fs, ist = p.fp, s.fs, s.ist
     for r in range(ist.shape[0]):
         fs[r, TOOLX] = fp[r, BASEX]
         fs[r, TOOLY] = fp[r, BASEY]
@@ -338,7 +348,7 @@ def start_robots(fp, ip, fs, ist, gs, exps):
         fs[r, APPROACH] = -math.inf
         ist[r, CLAIMED] = -1
         ist[r, LASTCLAIM] = -1
-        if ip[r, FAILMODE] != 0:
-            fs[r, NEXTFAIL] = _draw(fp, ip, ist, gs, exps, r, MTBF)
+        if p.ip[r, FAILMODE] != 0:
+            fs[r, NEXTFAIL] = _draw(p, s, st, r, MTBF)
     for r in range(ist.shape[0]):
-        _schedule(fs, ist, gs, r, 0.0, URGENT, PC_START)
+        _schedule(s, r, 0.0, URGENT, PC_START)

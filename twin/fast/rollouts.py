@@ -24,11 +24,13 @@ from pnp_twin.twin.fast import layout as L
 from pnp_twin.twin.fast.engine import FastLine
 from pnp_twin.twin.fast.jit import compiled
 from pnp_twin.twin.fast.kernel import choose_external, run_events
+from pnp_twin.twin.fast.structs import Records, Scratch, State, Streams
 
 
 @compiled()
-def _retime_noops(fp, gp, fs, ist, fed, n, n_kept):
+def _retime_noops(p, s, fed, n, n_kept):
     """NooPs timed by a part index >= n_kept (or by none) wait for this stream's next part."""
+    fp, gp, fs, ist = p.fp, p.gp, s.fs, s.ist
     v = gp[L.V]
     tick = gp[L.TICK]
     for q in range(ist.shape[0]):
@@ -54,19 +56,27 @@ def _copy(src, dst, rows, fill):
 
 
 @compiled()
-def _continue_all(
-    fp, ip, gp, gi, fs0, ist0, gs0, gf0, holder0, left_at0, rec_i0, rec_f0, counts0,
-    c_i0, c_f0, siro, exps, feds, ys, lens, n_kept, picks, rule, stop_at, lo, hi,
-    fs, ist, gs, gf, holder, left_at, rec_i, rec_f, counts, c_i, c_f, sp_i, sp_f, totals,
-):  # fmt: skip
-    """Every (future, pick) continuation; totals[p] sums the window's grips over futures.
+def _continue_all(p, at, work, st0, futures, picks, rule, stop_at, window, totals):
+    """Every (future, pick) continuation; totals[j] sums the window's grips over futures.
 
-    ``feds``/``ys`` hold one future per row, padded with fed = inf past ``lens[m]`` (the
-    kernel sees no part there); the scratch arrays have one row per padded part."""
+    ``at``: the line at its decision, ``work``: where each continuation runs (each a
+    (:class:`~twin.fast.structs.State`, :class:`~twin.fast.structs.Records`,
+    :class:`~twin.fast.structs.Scratch`)); ``st0``: the line's streams (their pre-drawn
+    draws). ``futures`` = (feds, ys, lens, n_kept): one future per row of ``feds``/``ys``,
+    padded with fed = inf past ``lens[m]`` (the kernel sees no part there); the work arrays
+    have one row per padded part. ``window``: (lo, hi), the feed times whose grips count."""
+    s0, rec0, sc0 = at
+    s, rec, sc = work
+    feds, ys, lens, n_kept = futures
+    lo, hi = window
+    fs0, ist0, gs0, gf0, holder0, left_at0, counts0 = s0
+    fs, ist, gs, gf, holder, left_at, counts = s
+    rec_i, rec_f = rec.rec_i, rec.rec_f
     for m in range(feds.shape[0]):
         n = lens[m]
         fed = feds[m]
-        for p in range(picks.shape[0]):
+        st = Streams(fed, ys[m], st0.siro, st0.exps)
+        for j in range(picks.shape[0]):
             _copy(fs0, fs, fs.shape[0], 0.0)
             _copy(ist0, ist, ist.shape[0], 0)
             _copy(counts0, counts, counts.shape[0], 0)
@@ -74,28 +84,25 @@ def _continue_all(
                 gs[i] = gs0[i]
             gf[0] = gf0[0]
             for i in range(gs0[L.DN]):  # the decision's candidates (the rest is scratch)
-                c_i[i] = c_i0[i]
+                sc.c_i[i] = sc0.c_i[i]
                 for c in range(3):
-                    c_f[i, c] = c_f0[i, c]
+                    sc.c_f[i, c] = sc0.c_f[i, c]
             for i in range(holder.shape[0]):
                 holder[i] = holder0[i] if i < n_kept else -1
                 left_at[i] = left_at0[i] if i < n_kept else math.inf
-            _copy(rec_i0, rec_i, n_kept, -1)
-            _copy(rec_f0, rec_f, n_kept, math.nan)
+            _copy(rec0.rec_i, rec_i, n_kept, -1)
+            _copy(rec0.rec_f, rec_f, n_kept, math.nan)
             for i in range(n_kept, rec_f.shape[0]):
                 rec_f[i, 3] = 0.0
             gs[L.RELEASES] += 1  # parts past n_kept replaced: robots' NooP searches restart
-            _retime_noops(fp, gp, fs, ist, fed, n, n_kept)
-            choose_external(fp, gp, fs, ist, gs, holder, left_at, c_i, c_f, picks[p], rule)
-            status = run_events(
-                fp, ip, gp, gi, fs, ist, gs, gf, fed, ys[m], holder, left_at, rec_i, rec_f,
-                sp_i, sp_f, counts, siro, exps, c_i, c_f, stop_at,
-            )  # fmt: skip
+            _retime_noops(p, s, fed, n, n_kept)
+            choose_external(p, s, sc, picks[j], rule)
+            status = run_events(p, s, rec, st, sc, stop_at)
             if status != 0:
                 return status
             for i in range(n):
                 if lo <= fed[i] and fed[i] < hi and rec_f[i, 1] == rec_f[i, 1]:
-                    totals[p] += 1
+                    totals[j] += 1
     return 0
 
 
@@ -156,18 +163,27 @@ def _run(
         ys[m, : len(f)] = y
     lens = np.array([len(f) for f, _ in futures], dtype=np.int64)
     code = L.RULE_NAMES.index(rule)
-    ip = line.ip.copy()
-    ip[:, L.RULE] = code
+    p = line.params._replace(ip=line.ip.copy())
+    p.ip[:, L.RULE] = code
     totals = np.zeros(len(picks), dtype=np.int64)
     rec_i, rec_f = np.zeros((width, 2), dtype=np.int64), np.zeros((width, 4))
+    work = (
+        State(
+            np.zeros((n_rob, L.N_FS)),
+            np.zeros((n_rob, L.N_IS), np.int64),
+            np.zeros(L.N_GS, dtype=np.int64),
+            np.zeros(1),
+            np.zeros(width, dtype=np.int64),
+            np.zeros(width),
+            np.zeros_like(line.counts),
+        ),
+        Records(rec_i, rec_f, np.zeros((0, 2), dtype=np.int32), np.zeros((0, 2))),
+        Scratch(np.zeros(width + 1, dtype=np.int64), np.zeros((width + 1, 3))),
+    )
+    at = (line.state, line.records, line.scratch)
+    futures_ = (feds, ys, lens, n_kept)
+    asked = np.asarray(picks, dtype=np.int64)
     status = _continue_all(
-        line.fp, ip, line.gp, line.gi, line.fs, line.ist, line.gs, line.gf, line.holder,
-        line.left_at, line.rec_i, line.rec_f, line.counts, line._c_i, line._c_f, line._siro,
-        line._exps, feds, ys, lens, n_kept, np.asarray(picks, dtype=np.int64), code, stop_at,
-        window[0], window[1], np.zeros((n_rob, L.N_FS)), np.zeros((n_rob, L.N_IS), np.int64),
-        np.zeros(L.N_GS, dtype=np.int64), np.zeros(1), np.zeros(width, dtype=np.int64),
-        np.zeros(width), rec_i, rec_f, np.zeros_like(line.counts),
-        np.zeros(width + 1, dtype=np.int64), np.zeros((width + 1, 3)),
-        np.zeros((0, 2), dtype=np.int32), np.zeros((0, 2)), totals,
-    )  # fmt: skip
+        p, at, work, line.streams, futures_, asked, code, stop_at, window, totals
+    )
     return int(status), totals, (rec_i, rec_f)

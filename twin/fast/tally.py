@@ -12,6 +12,7 @@ import numpy as np
 
 from pnp_twin.twin.fast.jit import compiled
 from pnp_twin.twin.fast.layout import S_NOOP, SPAN_NAMES
+from pnp_twin.twin.fast.structs import Records
 from pnp_twin.twin.kpis import SPAN_STATES, STATES, WELCH_BINS, KpiTally
 
 COL_OF = np.array(
@@ -37,14 +38,20 @@ def _clipped(start, end, w0, w1):
 
 
 @compiled()
-def _tally(fed, rec_i, rec_f, sp_i, sp_f, k_spans, w0, w1, col_of, out_i, out_f, sums):
-    """The sums (see :class:`twin.kpis.KpiTally`) into zeroed arrays: ``out_i`` rows picks,
+def _tally(fed, rec, k_spans, window, col_of, out_i, out_f, sums):
+    """The sums (see :class:`twin.kpis.KpiTally`) of the parts ``fed`` and their records
+    ``rec`` (:class:`~twin.fast.structs.Records`, ``k_spans`` spans) over ``window`` =
+    (w0, w1) into zeroed arrays: ``out_i`` rows picks,
     starts, rules, welch_parts, scratch (as long as the parts); ``out_f`` rows states
-    (n x 5), welch_picked; ``sums`` the cycles then the cycles by robot (as long as the
-    parts). ``col_of``: :data:`COL_OF`. Returns (presented, picked, noops)."""
+    (n x 5), welch_picked; ``sums`` the cycles, the cycles by robot, and a spare copy of
+    the cycles (as long as the parts; the spare's memory is ``owner``'s, an int64 view of
+    it, read before the copy). ``col_of``: :data:`COL_OF`. Returns (presented, picked,
+    noops)."""
+    rec_i, rec_f, sp_i, sp_f = rec
+    w0, w1 = window
     picks, starts, rules, welch_parts, owner = out_i
     states, welch_picked = out_f
-    cycles, grouped = sums
+    cycles, grouped, spare = sums
     n = picks.shape[0]
     bins = welch_parts.shape[0]
     busy = col_of[5]
@@ -78,6 +85,8 @@ def _tally(fed, rec_i, rec_f, sp_i, sp_f, k_spans, w0, w1, col_of, out_i, out_f,
         r = owner[k]
         grouped[starts[r]] = cycles[k]
         starts[r] += 1
+    for k in range(picked):  # owner is read: its memory takes the spare copy
+        spare[k] = cycles[k]
     for r in range(n, 0, -1):  # each robot's next slot is now the next robot's start
         starts[r] = starts[r - 1]
     starts[0] = 0
@@ -96,10 +105,7 @@ def _tally(fed, rec_i, rec_f, sp_i, sp_f, k_spans, w0, w1, col_of, out_i, out_f,
 
 def tally(
     fed: np.ndarray,
-    rec_i: np.ndarray,
-    rec_f: np.ndarray,
-    sp_i: np.ndarray,
-    sp_f: np.ndarray,
+    rec: Records,
     n_spans: int,
     n_robots: int,
     n_rules: int,
@@ -112,11 +118,14 @@ def tally(
     picks, starts, rules = (np.zeros(k, np.int64) for k in (n_robots, n_robots + 1, n_rules + 1))
     welch_parts, welch_picked = np.zeros(WELCH_BINS, np.int64), np.zeros(WELCH_BINS)
     states = np.zeros((n_robots, len(STATES)))
-    cycles, grouped, owner = np.empty(n_parts), np.empty(n_parts), np.empty(n_parts, np.int64)
+    cycles, grouped, spare = np.empty(n_parts), np.empty(n_parts), np.empty(n_parts)
+    owner = spare.view(np.int64)  # scratch, then the spare copy of the cycles
+    out_i = (picks, starts, rules, welch_parts, owner)
+    out_f = (states, welch_picked)
+    window = (warmup, duration)
     presented, picked, noops = _tally(
-        fed, rec_i, rec_f, sp_i, sp_f, n_spans, warmup, duration, COL_OF,
-        (picks, starts, rules, welch_parts, owner), (states, welch_picked), (cycles, grouped),
-    )  # fmt: skip
+        fed, rec, n_spans, window, COL_OF, out_i, out_f, (cycles, grouped, spare)
+    )
     return KpiTally(
         presented=int(presented),
         picked=int(picked),
@@ -129,4 +138,5 @@ def tally(
         noops=int(noops),
         welch_parts=welch_parts,
         welch_picked=welch_picked,
+        spare=spare[:picked],
     )

@@ -43,6 +43,7 @@ from pnp_twin.learning.vector import step as V
 from pnp_twin.twin.camera import BeltCamera
 from pnp_twin.twin.fast import layout as L
 from pnp_twin.twin.fast.engine import FastLine
+from pnp_twin.twin.fast.structs import Params, Records, Scratch, State, Streams
 from pnp_twin.twin.feeder import Feeder
 from pnp_twin.twin.plan import ARRIVALS, FIRST_ROBOT, LATERAL, POLICY, LinePlan
 from pnp_twin.twin.scenario import Scenario
@@ -265,9 +266,9 @@ class LineBatch:
         numba.set_num_threads(self.threads)
         if not V.step_lines.signatures:  # the first step of the process: compile or load
             with compile_notice():
-                self._step_lines(codes, mode)
+                V.step_lines(*self._structs(), codes, mode)
         else:
-            self._step_lines(codes, mode)
+            V.step_lines(*self._structs(), codes, mode)
         if not V.statuses_ok(self.gs):
             bad = int(np.flatnonzero(self.gs[:, L.STATUS] != L.ST_EPOCH)[0])
             status = int(self.gs[bad, L.STATUS])
@@ -277,15 +278,20 @@ class LineBatch:
                 "pnp_twin.learning.vector.batch"
             )
 
-    def _step_lines(self, codes: np.ndarray, mode: np.ndarray) -> None:
-        V.step_lines(
-            self.fp, self.ip0, self.gp, self.gi, self.ef, self.ei, self.spans, self.ip,
-            self.fs, self.ist, self.gs, self.gf, self.fed, self.ys, self.holder, self.left_at,
-            self.counts, self.siro_draws, self.exps, self.rec_i, self.rec_f, self.sp_i,
-            self.sp_f, self.c_i, self.c_f, codes, mode, self.started, self.noops0, self.epi,
-            self.obs, self.reward, self.term, self.trunc, self.tau, self.grip, self.picks,
-            self.noops, self.rewards, self.options, self.cand, self.skipped,
-        )  # fmt: skip
+    def _structs(
+        self,
+    ) -> tuple[Params, V.EnvParams, State, Streams, Records, Scratch, V.Episodes, V.StepOut]:
+        """The arrays as :func:`~pnp_twin.learning.vector.step.step_lines` takes them."""
+        return (
+            Params(self.fp, self.ip, self.gp, self.gi),
+            V.EnvParams(self.ef, self.ei, self.spans, self.ip0),
+            State(*(getattr(self, name) for name in State._fields)),
+            Streams(self.fed, self.ys, self.siro_draws, self.exps),
+            Records(*(getattr(self, name) for name in Records._fields)),
+            Scratch(self.c_i, self.c_f),
+            V.Episodes(*(getattr(self, name) for name in V.Episodes._fields)),
+            V.StepOut(*(getattr(self, name) for name in V.StepOut._fields)),
+        )
 
     @property
     def now(self) -> np.ndarray:

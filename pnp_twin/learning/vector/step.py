@@ -13,11 +13,16 @@ gripping rate over the command line's window, and writes the observation
 
 Lines are split into chunks; chunks run on numba's threads (``prange``), each with its own
 scratch arrays (candidates, and the pick records the kernel writes but no environment reads).
+
+The arrays travel in the kernel's structures (:mod:`pnp_twin.twin.fast.structs`) with a
+leading line (or chunk) axis, and in three of this module's: :class:`EnvParams`,
+:class:`Episodes` and :class:`StepOut`.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import prange
@@ -27,6 +32,13 @@ from pnp_twin.twin.fast.jit import compiled
 from pnp_twin.twin.fast.kernel import run_events
 from pnp_twin.twin.fast.layout import CLAIMED, LASTCLAIM, NOOP, NOW, PENDING, RULE, ST_EPOCH, STATUS
 from pnp_twin.twin.fast.robot import _candidates, start_robots
+from pnp_twin.twin.fast.structs import (
+    params_of,
+    records_of,
+    scratch_of,
+    state_of,
+    streams_of,
+)
 
 # env float parameters ef[.]
 DURATION, MAX_TIME, W_EXT, W_INT, PENALTY, BELT_LAG, END_LAG, COL_SCALE, ROW_SCALE, SPEED = range(
@@ -45,9 +57,45 @@ N_EPI = 4
 SKIP, ACT, RESET = range(3)
 
 
+class EnvParams(NamedTuple):
+    """What every line's episode reads."""
+
+    ef: np.ndarray  # float64 (N_EF,): see the column names above
+    ei: np.ndarray  # int64 (N_EI,): step cap, skip forced NooPs
+    spans: np.ndarray  # int64 (robots, 2): each workspace's columns in the image
+    ip0: np.ndarray  # int64 (robots, N_IP): a fresh line's robot int parameters
+
+
+class Episodes(NamedTuple):
+    """Each line's option bookkeeping and episode state (a leading line axis)."""
+
+    started: np.ndarray  # float64 (lines, robots): when each robot's option began
+    noops0: np.ndarray  # int64 (lines, robots): its NooP count then
+    epi: np.ndarray  # int64 (lines, N_EPI): see the column names above
+
+
+class StepOut(NamedTuple):
+    """What a step returns for each line (a leading line axis)."""
+
+    obs: np.ndarray  # uint8 (lines, channels, rows, columns): the camera image
+    reward: np.ndarray  # float64 (lines,)
+    term: np.ndarray  # bool (lines,)
+    trunc: np.ndarray  # bool (lines,)
+    tau: np.ndarray  # float64 (lines,): the step's duration
+    grip: np.ndarray  # float64 (lines,): gripping rate, percent
+    picks: np.ndarray  # int64 (lines, robots)
+    noops: np.ndarray  # int64 (lines, robots)
+    rewards: np.ndarray  # float64 (lines, robots): eq. 1 + eq. 2
+    options: np.ndarray  # float64 (lines, robots): durations of the options that ended
+    cand: np.ndarray  # int64 (lines, robots): each deciding robot's candidates
+    skipped: np.ndarray  # int64 (lines,): epochs skipped (no deciding robot had a choice)
+
+
 @compiled()
-def _observe(obs, fed, ys, holder, left_at, ist, spans, ef, now):
+def _observe(obs, s, st, env, now):
     """BeltCamera._draw then .belt: parts, claimed parts, busy robots' workspace columns."""
+    fed, ys, holder, left_at, ist = st.fed, st.ys, s.holder, s.left_at, s.ist
+    ef, spans = env.ef, env.spans
     c, ny, nx = obs.shape
     obs[:] = 0
     lo = np.searchsorted(fed, now - ef[BELT_LAG], side="left")
@@ -87,9 +135,12 @@ def _gripping_rate(fed, holder, epi, ef, now):
 
 
 @compiled()
-def _collect(ist, holder, counts, started, noops0, picks, noops, rewards, options, ef, now):
-    """EpochDriver._collect: picks of the options running, then the options that ended for
-    the robots deciding now; adds picks, NooPs and eq. 1 + eq. 2 per robot."""
+def _collect(s, ep, out, e, ef, now):
+    """EpochDriver._collect for line e: picks of the options running, then the options that
+    ended for the robots deciding now; adds picks, NooPs and eq. 1 + eq. 2 per robot."""
+    ist, holder, counts = s.ist, s.holder, s.counts
+    started, noops0 = ep.started[e], ep.noops0[e]
+    picks, noops, rewards, options = out.picks[e], out.noops[e], out.rewards[e], out.options[e]
     for r in range(ist.shape[0]):
         part = ist[r, LASTCLAIM]
         if part >= 0 and ist[r, CLAIMED] == -1 and holder[part] == r:  # gripped
@@ -113,137 +164,131 @@ def _collect(ist, holder, counts, started, noops0, picks, noops, rewards, option
 
 
 @compiled()
-def _choices(fp, fs, ist, gp, fed, ys, holder, now, c_i, c_f, cand):
+def _choices(p, s, st, sc, now, cand):
     """Each deciding robot's candidate parts now (0 for the others); True if any has one."""
+    ist = s.ist
     any_choice = False
     for r in range(ist.shape[0]):
         cand[r] = 0
         if ist[r, PENDING]:
-            cand[r] = _candidates(fp, fs, ist, gp, fed, ys, holder, now, r, c_i, c_f)
+            cand[r] = _candidates(p, s, st, sc, r, now)
             if cand[r] > 0:
                 any_choice = True
     return any_choice
 
 
 @compiled()
-def _act(ip, fs, ist, gs, gf, counts, codes, started, noops0, keep):
-    """EpochDriver.act: the deciding robots' rules set (kept with ``keep``), their options
-    opened, released."""
-    now = gf[NOW]
+def _act(p, s, ep, e, codes, keep):
+    """EpochDriver.act for line e: the deciding robots' rules set to ``codes`` (kept with
+    ``keep``), their options opened, released."""
+    ist, started, noops0 = s.ist, ep.started[e], ep.noops0[e]
+    now = s.gf[NOW]
     for r in range(ist.shape[0]):
         if ist[r, PENDING]:
             if not keep:
-                ip[r, RULE] = codes[r]
+                p.ip[r, RULE] = codes[r]
             ist[r, LASTCLAIM] = -1
             started[r] = now
-            noops0[r] = counts[r, NOOP]
-    release(fs, ist, gs, now)
+            noops0[r] = s.counts[r, NOOP]
+    release(s)
 
 
 @compiled()
-def _restart(ip0, ip, fs, ist, gs, gf, fed, holder, left_at, counts, started, noops0, epi, ef):
-    """A fresh line (its parts and pre-drawn streams already in place): state at t = 0."""
+def _restart(p, s, st, ep, e, env):
+    """A fresh line e (its parts and pre-drawn streams already in place): state at t = 0."""
+    ip, ip0 = p.ip, env.ip0
     for r in range(ip.shape[0]):  # a loop: copying an array in place would allocate
         for j in range(ip.shape[1]):
             ip[r, j] = ip0[r, j]
-    fs[:] = 0.0
-    ist[:] = 0
-    gs[:] = 0
-    gf[:] = 0.0
-    counts[:] = 0
-    holder[:] = -1
-    left_at[:] = math.inf
-    started[:] = math.nan
-    noops0[:] = 0
+    s.fs[:] = 0.0
+    s.ist[:] = 0
+    s.gs[:] = 0
+    s.gf[:] = 0.0
+    s.counts[:] = 0
+    s.holder[:] = -1
+    s.left_at[:] = math.inf
+    ep.started[e, :] = math.nan
+    ep.noops0[e, :] = 0
+    epi = ep.epi[e]
     epi[:] = 0
-    first = np.searchsorted(fed, ef[WARMUP], side="left")
+    first = np.searchsorted(st.fed, env.ef[WARMUP], side="left")
     epi[FIRST] = first
     epi[PASSED] = first
 
 
 @compiled(parallel=True)
-def step_lines(
-    fp, ip0, gp, gi, ef, ei, spans, ip, fs, ist, gs, gf, fed, ys, holder, left_at, counts,
-    siro, exps, rec_i, rec_f, sp_i, sp_f, c_i, c_f, codes, mode, started, noops0, epi,
-    obs, reward, term, trunc, tau, grip, picks, noops, rewards, options, cand, skipped,
-):  # fmt: skip
+def step_lines(p, env, lines, streams, recs, scratch, episodes, out, codes, mode):
     """Step every line as ``mode[e]`` says: RESET starts line e afresh (reward 0, not
     ended), ACT gives its pending robots the rule codes ``codes[e]``; both then run it to
     its next decision epoch (with ``ei[SKIP_NOOPS]``, on past epochs where no deciding
-    robot has a candidate, the robots keeping their rules). SKIP leaves it as it is."""
-    n_env = fs.shape[0]
-    n_chunks = c_i.shape[0]
+    robot has a candidate, the robots keeping their rules). SKIP leaves it as it is.
+
+    ``p``: the lines' :class:`~pnp_twin.twin.fast.structs.Params` with a rule code row
+    per line (``ip``: lines x robots x N_IP); ``lines``, ``streams``: their states and
+    streams; ``recs``, ``scratch``: one row per chunk of lines."""
+    n_env = lines.fs.shape[0]
+    n_chunks = scratch.c_i.shape[0]
     for k in prange(n_chunks):
+        rec = records_of(recs, k)
+        sc = scratch_of(scratch, k)
         for e in range(k * n_env // n_chunks, (k + 1) * n_env // n_chunks):
-            if mode[e] == SKIP:
-                continue
-            before = gf[e, NOW]
-            fresh = mode[e] == RESET
-            if fresh:
-                _restart(
-                    ip0, ip[e], fs[e], ist[e], gs[e], gf[e], fed[e], holder[e], left_at[e],
-                    counts[e], started[e], noops0[e], epi[e], ef,
-                )  # fmt: skip
-                start_robots(fp, ip[e], fs[e], ist[e], gs[e], exps[e])
-                before = 0.0
-            else:
-                _act(
-                    ip[e], fs[e], ist[e], gs[e], gf[e], counts[e], codes[e], started[e],
-                    noops0[e], False,
-                )  # fmt: skip
-                epi[e, STEPS] += 1
-            picks[e, :] = 0
-            noops[e, :] = 0
-            rewards[e, :] = 0.0
-            skipped[e] = 0
-            while True:
-                run_events(
-                    fp, ip[e], gp, gi, fs[e], ist[e], gs[e], gf[e], fed[e], ys[e], holder[e],
-                    left_at[e], rec_i[k], rec_f[k], sp_i[k], sp_f[k], counts[e], siro[e],
-                    exps[e], c_i[k], c_f[k], math.inf,
-                )  # fmt: skip
-                now = gf[e, NOW]
-                _collect(
-                    ist[e], holder[e], counts[e], started[e], noops0[e], picks[e], noops[e],
-                    rewards[e], options[e], ef, now,
-                )  # fmt: skip
-                choice = _choices(
-                    fp, fs[e], ist[e], gp, fed[e], ys[e], holder[e], now, c_i[k], c_f[k],
-                    cand[e],
-                )  # fmt: skip
-                if gs[e, STATUS] != ST_EPOCH or not ei[SKIP_NOOPS] or choice:
-                    break
-                if now >= ef[DURATION] or now >= ef[MAX_TIME]:
-                    break
-                _act(
-                    ip[e], fs[e], ist[e], gs[e], gf[e], counts[e], codes[e], started[e],
-                    noops0[e], True,
-                )  # fmt: skip
-                skipped[e] += 1
-            _close(
-                ef, ei, spans, ist[e], gf[e], fed[e], ys[e], holder[e], left_at[e], epi[e],
-                obs[e], rewards[e], fresh, reward, term, trunc, tau, grip, e, before,
-            )  # fmt: skip
+            if mode[e] != SKIP:
+                _step_line(p, env, lines, streams, rec, sc, episodes, out, codes[e], mode[e], e)
 
 
 @compiled()
-def _close(
-    ef, ei, spans, ist, gf, fed, ys, holder, left_at, epi, obs, rewards, fresh, reward, term,
-    trunc, tau, grip, e, before,
-):  # fmt: skip
+def _step_line(p, env, lines, streams, rec, sc, episodes, out, codes, mode, e):
+    """Line e's step (see :func:`step_lines`): the body of its loop, in a function of its
+    own because numba's parallel loop loses writes made through a structure's attribute
+    inside it (``out.rewards[e, :] = 0.0`` had no effect there, numba 0.68)."""
+    ef, ei = env.ef, env.ei
+    pe = params_of(p, p.ip, e)
+    s = state_of(lines, e)
+    st = streams_of(streams, e)
+    before = s.gf[NOW]
+    fresh = mode == RESET
+    if fresh:
+        _restart(pe, s, st, episodes, e, env)
+        start_robots(pe, s, st)
+        before = 0.0
+    else:
+        _act(pe, s, episodes, e, codes, False)
+        episodes.epi[e, STEPS] += 1
+    out.picks[e, :] = 0
+    out.noops[e, :] = 0
+    out.rewards[e, :] = 0.0
+    out.skipped[e] = 0
+    while True:
+        run_events(pe, s, rec, st, sc, math.inf)
+        now = s.gf[NOW]
+        _collect(s, episodes, out, e, ef, now)
+        choice = _choices(pe, s, st, sc, now, out.cand[e])
+        if s.gs[STATUS] != ST_EPOCH or not ei[SKIP_NOOPS] or choice:
+            break
+        if now >= ef[DURATION] or now >= ef[MAX_TIME]:
+            break
+        _act(pe, s, episodes, e, codes, True)
+        out.skipped[e] += 1
+    _close(env, s, st, episodes.epi[e], out, e, fresh, before)
+
+
+@compiled()
+def _close(env, s, st, epi, out, e, fresh, before):
     """The step's results for line e at its new epoch (PickPlaceEnv.step and _get_info)."""
-    now = gf[NOW]
+    ef, ei = env.ef, env.ei
+    now = s.gf[NOW]
     done = now >= ef[DURATION]
     capped = (ei[MAX_STEPS] > 0 and epi[STEPS] >= ei[MAX_STEPS]) or now >= ef[MAX_TIME]
     total = 0.0
+    rewards = out.rewards[e]
     for r in range(rewards.shape[0]):
         total += rewards[r]
-    reward[e] = 0.0 if fresh else total
-    term[e] = done and not fresh
-    trunc[e] = capped and not done and not fresh
-    tau[e] = now - before
-    grip[e] = _gripping_rate(fed, holder, epi, ef, now)
-    _observe(obs, fed, ys, holder, left_at, ist, spans, ef, now)
+    out.reward[e] = 0.0 if fresh else total
+    out.term[e] = done and not fresh
+    out.trunc[e] = capped and not done and not fresh
+    out.tau[e] = now - before
+    out.grip[e] = _gripping_rate(st.fed, s.holder, epi, ef, now)
+    _observe(out.obs[e], s, st, env, now)
 
 
 def statuses_ok(gs: np.ndarray) -> bool:
