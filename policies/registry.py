@@ -18,6 +18,7 @@ PREFIXED: dict[str, str] = {
     "hdqn": "pnp_twin.policies.hdqn.policy:from_spec",
     "sb3": "pnp_twin.policies.sb3_policy:from_spec",
     "lookahead": "pnp_twin.policies.lookahead:from_spec",
+    "py": "pnp_twin.policies.user_policy:from_spec",
 }
 
 
