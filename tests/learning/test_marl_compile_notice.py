@@ -31,6 +31,8 @@ def test_a_compile_warns_once_and_a_compiled_function_not():
             assert add(1.0, 2.0) == 3.0  # a second compile in the block: still one notice
     assert _notices(caught) == [COMPILE_NOTICE]
     assert listener.warned
+    # the notice names the line that called the compiled code, not numba's internals
+    assert [Path(w.filename).name for w in caught] == [Path(__file__).name]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         with compile_notice():

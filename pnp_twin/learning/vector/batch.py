@@ -30,6 +30,7 @@ numba's on-disk cache warns nothing.
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -83,10 +84,22 @@ class _CompileListener(numba_event.Listener):
     def on_start(self, event: numba_event.Event) -> None:
         if not self.warned:
             self.warned = True
-            warnings.warn(self.message, CompileNotice, stacklevel=2)
+            warnings.warn(self.message, CompileNotice, stacklevel=_user_level())
 
     def on_end(self, event: numba_event.Event) -> None:
         """Nothing at the end."""
+
+
+_OURS = ("numba", "pnp_twin", "gymnasium", "pettingzoo", "contextlib", "importlib")
+
+
+def _user_level() -> int:
+    """The ``stacklevel`` of the first frame outside numba, pnp_twin and the env libraries,
+    so the notice names the user's line that stepped the env, not numba's internals."""
+    frame, level = sys._getframe(1), 1
+    while frame.f_back is not None and str(frame.f_globals.get("__name__", "")).startswith(_OURS):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 @contextmanager
