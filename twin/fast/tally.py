@@ -8,12 +8,15 @@ taken in the same order (per robot and column, parts first, then spans, in recor
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from pnp_twin.twin.fast.jit import compiled
 from pnp_twin.twin.fast.layout import S_NOOP, SPAN_NAMES
+from pnp_twin.twin.fast.pool import take
 from pnp_twin.twin.fast.structs import Records
-from pnp_twin.twin.kpis import SPAN_STATES, STATES, WELCH_BINS, KpiTally
+from pnp_twin.twin.kpis import PERCENTILES, SPAN_STATES, STATES, WELCH_BINS, KpiTally
 
 COL_OF = np.array(
     [
@@ -103,6 +106,82 @@ def _tally(fed, rec, k_spans, window, col_of, out_i, out_f, sums):
     return presented, picked, noops
 
 
+@compiled()
+def _order_stats(a, ks):
+    """Rearrange ``a`` so that each ``a[k]`` of ``ks`` (ascending, distinct) is the k-th
+    smallest of ``a`` (Wirth's selection, each on what lies above the previous k). False
+    (``a`` a permutation of itself, or untouched) if ``a`` holds a NaN or a selection takes
+    too many rounds: then let numpy do it."""
+    n = a.shape[0]
+    for i in range(n):
+        if a[i] != a[i]:
+            return False
+    lo = 0
+    for q in range(ks.shape[0]):
+        k = ks[q]
+        if k == lo:  # the smallest of what is left: one pass
+            m = lo
+            for i in range(lo + 1, n):
+                if a[i] < a[m]:
+                    m = i
+            a[lo], a[m] = a[m], a[lo]
+            lo = k + 1
+            continue
+        left, right = lo, n - 1
+        rounds = 0
+        while left < right:
+            rounds += 1
+            if rounds > 200:
+                return False
+            x0, x1, x2 = a[left], a[(left + right) // 2], a[right]  # median of three
+            if x0 > x1:
+                x0, x1 = x1, x0
+            if x1 > x2:
+                x1 = x2 if x0 <= x2 else x0
+            x = x1
+            i, j = left, right
+            while i <= j:
+                while a[i] < x:
+                    i += 1
+                while x < a[j]:
+                    j -= 1
+                if i <= j:
+                    a[i], a[j] = a[j], a[i]
+                    i += 1
+                    j -= 1
+            if j < k:
+                left = i
+            if k < i:
+                right = j
+        lo = k + 1
+    return True
+
+
+def linear_percentiles(values: np.ndarray, qs: tuple[float, ...]) -> list[float] | None:
+    """``np.percentile(values, qs).tolist()`` (the default linear method), the same doubles,
+    from order statistics selected in place (``values`` is reordered); None where numpy
+    must do it (a NaN among them, or a selection that would not converge)."""
+    n = len(values)
+    if n == 0:
+        return None
+    at = [(n - 1) * (q / 100) for q in qs]  # numpy's virtual indexes: (n - 1) * quantile
+    ks = {n - 1 for v in at if v >= n - 1}
+    ks |= {k for v in at if v < n - 1 for k in (math.floor(v), math.floor(v) + 1)}
+    if not _order_stats(values, np.array(sorted(ks), dtype=np.int64)):
+        return None
+    out = []
+    for v in at:
+        if v >= n - 1:  # numpy takes the last value (lerp of it with itself)
+            out.append(float(values[n - 1]))
+            continue
+        prev = math.floor(v)
+        t = v - prev
+        a, b = float(values[prev]), float(values[prev + 1])
+        diff = b - a  # numpy's _lerp
+        out.append(b - diff * (1 - t) if t >= 0.5 else a + diff * t)
+    return out
+
+
 def tally(
     fed: np.ndarray,
     rec: Records,
@@ -118,7 +197,8 @@ def tally(
     picks, starts, rules = (np.zeros(k, np.int64) for k in (n_robots, n_robots + 1, n_rules + 1))
     welch_parts, welch_picked = np.zeros(WELCH_BINS, np.int64), np.zeros(WELCH_BINS)
     states = np.zeros((n_robots, len(STATES)))
-    cycles, grouped, spare = np.empty(n_parts), np.empty(n_parts), np.empty(n_parts)
+    # scratch the KPIs are read from and never returned: memory earlier runs let go
+    cycles, grouped, spare = (take(k, n_parts) for k in ("cycles", "grouped", "spare"))
     owner = spare.view(np.int64)  # scratch, then the spare copy of the cycles
     out_i = (picks, starts, rules, welch_parts, owner)
     out_f = (states, welch_picked)
@@ -126,6 +206,7 @@ def tally(
     presented, picked, noops = _tally(
         fed, rec, n_spans, window, COL_OF, out_i, out_f, (cycles, grouped, spare)
     )
+    quantiles = linear_percentiles(spare[:picked], PERCENTILES) if picked else None
     return KpiTally(
         presented=int(presented),
         picked=int(picked),
@@ -139,4 +220,5 @@ def tally(
         welch_parts=welch_parts,
         welch_picked=welch_picked,
         spare=spare[:picked],
+        percentiles=None if quantiles is None else (quantiles[0], quantiles[1]),
     )
