@@ -14,11 +14,13 @@ arrays; a buffer more than four times what a role needs is replaced.
 from __future__ import annotations
 
 import sys
+import threading
 from math import prod
 
 import numpy as np
 
 _BUFFERS: dict[str, np.ndarray] = {}
+_LOCK = threading.Lock()  # one taker at a time: two threads never get the same buffer
 
 
 def _free_count() -> int:
@@ -40,14 +42,15 @@ def take(
     shape = (shape,) if isinstance(shape, int) else tuple(shape)
     size = prod(shape)
     dt = np.dtype(dtype)
-    buf = _BUFFERS.get(role)
-    if (
-        buf is None
-        or buf.dtype != dt
-        or buf.size < size
-        or buf.size > 4 * size + 4096
-        or sys.getrefcount(buf) != _FREE
-    ):
-        buf = np.empty(max(size, 1), dtype=dt)
-        _BUFFERS[role] = buf
-    return buf[:size].reshape(shape)
+    with _LOCK:
+        buf = _BUFFERS.get(role)
+        if (
+            buf is None
+            or buf.dtype != dt
+            or buf.size < size
+            or buf.size > 4 * size + 4096
+            or sys.getrefcount(buf) != _FREE
+        ):
+            buf = np.empty(max(size, 1), dtype=dt)
+            _BUFFERS[role] = buf
+        return buf[:size].reshape(shape)
