@@ -107,11 +107,50 @@ def _tally(fed, rec, k_spans, window, col_of, out_i, out_f, sums):
 
 
 @compiled()
+def _select(a, left, right, k):
+    """Floyd and Rivest's SELECT: rearrange ``a[left:right + 1]`` (no NaN) so that ``a[k]``
+    is its (k - left)-th smallest, the smaller before it, the larger after it; a pivot near
+    the k-th is first selected in a sample of the range (in place, recursively)."""
+    while right > left:
+        if right - left > 600:
+            n = right - left + 1
+            i = k - left + 1
+            z = math.log(n)
+            s = 0.5 * math.exp(2.0 * z / 3.0)
+            sd = 0.5 * math.sqrt(z * s * (n - s) / n) * (1.0 if i - n / 2.0 >= 0 else -1.0)
+            new_left = max(left, int(k - i * s / n + sd))
+            new_right = min(right, int(k + (n - i) * s / n + sd))
+            _select(a, new_left, new_right, k)
+        t = a[k]
+        i = left
+        j = right
+        a[left], a[k] = a[k], a[left]
+        if a[right] > t:
+            a[right], a[left] = a[left], a[right]
+        while i < j:
+            a[i], a[j] = a[j], a[i]
+            i += 1
+            j -= 1
+            while a[i] < t:
+                i += 1
+            while a[j] > t:
+                j -= 1
+        if a[left] == t:
+            a[left], a[j] = a[j], a[left]
+        else:
+            j += 1
+            a[j], a[right] = a[right], a[j]
+        if j <= k:
+            left = j + 1
+        if k <= j:
+            right = j - 1
+
+
+@compiled()
 def _order_stats(a, ks):
     """Rearrange ``a`` so that each ``a[k]`` of ``ks`` (ascending, distinct) is the k-th
-    smallest of ``a`` (Wirth's selection, each on what lies above the previous k). False
-    (``a`` a permutation of itself, or untouched) if ``a`` holds a NaN or a selection takes
-    too many rounds: then let numpy do it."""
+    smallest of ``a`` (each selected in what lies above the previous k). False (``a``
+    untouched) if ``a`` holds a NaN: then let numpy do it."""
     n = a.shape[0]
     for i in range(n):
         if a[i] != a[i]:
@@ -125,34 +164,8 @@ def _order_stats(a, ks):
                 if a[i] < a[m]:
                     m = i
             a[lo], a[m] = a[m], a[lo]
-            lo = k + 1
-            continue
-        left, right = lo, n - 1
-        rounds = 0
-        while left < right:
-            rounds += 1
-            if rounds > 200:
-                return False
-            x0, x1, x2 = a[left], a[(left + right) // 2], a[right]  # median of three
-            if x0 > x1:
-                x0, x1 = x1, x0
-            if x1 > x2:
-                x1 = x2 if x0 <= x2 else x0
-            x = x1
-            i, j = left, right
-            while i <= j:
-                while a[i] < x:
-                    i += 1
-                while x < a[j]:
-                    j -= 1
-                if i <= j:
-                    a[i], a[j] = a[j], a[i]
-                    i += 1
-                    j -= 1
-            if j < k:
-                left = i
-            if k < i:
-                right = j
+        else:
+            _select(a, lo, n - 1, k)
         lo = k + 1
     return True
 
@@ -160,7 +173,7 @@ def _order_stats(a, ks):
 def linear_percentiles(values: np.ndarray, qs: tuple[float, ...]) -> list[float] | None:
     """``np.percentile(values, qs).tolist()`` (the default linear method), the same doubles,
     from order statistics selected in place (``values`` is reordered); None where numpy
-    must do it (a NaN among them, or a selection that would not converge)."""
+    must do it (a NaN among them)."""
     n = len(values)
     if n == 0:
         return None
