@@ -268,7 +268,8 @@ class FastLine:
         self.rec_i = take("rec_i", (n_parts, 2), np.int64)
         self.rec_i.fill(-1)
         self.rec_f = take("rec_f", (n_parts, 4))
-        self.rec_f[:] = (math.nan, math.nan, math.nan, 0.0)  # not decided, picked, placed
+        self.rec_f.fill(math.nan)  # not decided, picked, placed; blocked 0 s
+        self.rec_f[:, 3] = 0.0  # (a fill and a column: a fifth of a row-tuple's assignment)
         # the span buffer owns its memory: it grows in place (ndarray.resize)
         self.sp_i = np.zeros((span_room, 2), dtype=np.int32)  # robot, state
         self.sp_f = np.zeros((span_room, 2))  # start, end
