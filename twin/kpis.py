@@ -47,6 +47,7 @@ if TYPE_CHECKING:
 STATES = ("busy", "noop", "wait", "blocked", "down")
 SPAN_STATES = ("wait", "interrupted", "noop", "blocked", "down")
 """The states a span records, in the order of :attr:`SpanRecords.state`'s codes."""
+PERCENTILES = (50, 95)  # of the cycle times: cycle_time_p50 and cycle_time_p95
 WELCH_BINS = 60  # the feeding period [0, duration) in this many bins, warm-up included
 
 
@@ -179,6 +180,7 @@ class KpiTally:
     welch_parts: np.ndarray  # (WELCH_BINS,) int: parts fed per bin of [0, duration)
     welch_picked: np.ndarray  # (WELCH_BINS,) float: of those, picked
     spare: np.ndarray | None = None  # a copy of cycles the quantiles may reorder (None: copy)
+    percentiles: tuple[float, float] | None = None  # of the cycles at PERCENTILES, if taken
 
 
 def tally(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) -> KpiTally:
@@ -271,10 +273,12 @@ def tally_kpis(
                 "nominal_capacity": float(nominal[i]),
             }
         )
-    if len(cycles):  # on a spare copy when there is one (same values: same quantiles)
+    if sums.percentiles is not None:  # taken already (np.percentile's doubles)
+        p50, p95 = sums.percentiles
+    elif len(cycles):  # on a spare copy when there is one (same values: same quantiles)
         spare = sums.spare
         quantiles = np.percentile(
-            cycles if spare is None else spare, [50, 95], overwrite_input=spare is not None
+            cycles if spare is None else spare, PERCENTILES, overwrite_input=spare is not None
         )
         p50, p95 = quantiles.tolist()
     return {

@@ -40,6 +40,7 @@ from pnp_twin.twin.fast.kernel import (
     run_events,
     start_robots,
 )
+from pnp_twin.twin.fast.pool import take
 from pnp_twin.twin.fast.structs import Params, Records, Scratch, State, Streams
 from pnp_twin.twin.feeder import Feeder
 from pnp_twin.twin.kpis import SPAN_STATES, PartRecords, SpanRecords, tally_kpis
@@ -259,16 +260,22 @@ class FastLine:
         self.ist = np.zeros((n, L.N_IS), dtype=np.int64)
         self.gs = np.zeros(L.N_GS, dtype=np.int64)
         self.gf = np.zeros(1)
-        self.holder = np.full(n_parts, -1, dtype=np.int64)
-        self.left_at = np.full(n_parts, math.inf)
-        self.rec_i = np.full((n_parts, 2), -1, dtype=np.int64)
-        self.rec_f = np.empty((n_parts, 4))
-        self.rec_f[:] = (math.nan, math.nan, math.nan, 0.0)  # not decided, picked, placed
+        # the large arrays in memory earlier runs let go (twin.fast.pool), set as new ones
+        self.holder = take("holder", n_parts, np.int64)
+        self.holder.fill(-1)
+        self.left_at = take("left_at", n_parts)
+        self.left_at.fill(math.inf)
+        self.rec_i = take("rec_i", (n_parts, 2), np.int64)
+        self.rec_i.fill(-1)
+        self.rec_f = take("rec_f", (n_parts, 4))
+        self.rec_f.fill(math.nan)  # not decided, picked, placed; blocked 0 s
+        self.rec_f[:, 3] = 0.0  # (a fill and a column: a fifth of a row-tuple's assignment)
+        # the span buffer owns its memory: it grows in place (ndarray.resize)
         self.sp_i = np.zeros((span_room, 2), dtype=np.int32)  # robot, state
         self.sp_f = np.zeros((span_room, 2))  # start, end
         self.counts = np.zeros((n, len(L.RULE_NAMES)), dtype=np.int64)
-        self._c_i = np.empty(n_parts + 1, dtype=np.int64)  # scratch: a decision's candidates
-        self._c_f = np.empty((n_parts + 1, 3))
+        self._c_i = take("c_i", n_parts + 1, np.int64)  # scratch: a decision's candidates
+        self._c_f = take("c_f", (n_parts + 1, 3))
         start_robots(self.params, self.state, self.streams)
         self.extra_rules, self.extra_counts = [], Counter()
         if self.external is not None:  # as Line: reset with the policy stream, then attach

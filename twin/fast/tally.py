@@ -8,12 +8,15 @@ taken in the same order (per robot and column, parts first, then spans, in recor
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from pnp_twin.twin.fast.jit import compiled
 from pnp_twin.twin.fast.layout import S_NOOP, SPAN_NAMES
+from pnp_twin.twin.fast.pool import take
 from pnp_twin.twin.fast.structs import Records
-from pnp_twin.twin.kpis import SPAN_STATES, STATES, WELCH_BINS, KpiTally
+from pnp_twin.twin.kpis import PERCENTILES, SPAN_STATES, STATES, WELCH_BINS, KpiTally
 
 COL_OF = np.array(
     [
@@ -103,6 +106,95 @@ def _tally(fed, rec, k_spans, window, col_of, out_i, out_f, sums):
     return presented, picked, noops
 
 
+@compiled()
+def _select(a, left, right, k):
+    """Floyd and Rivest's SELECT: rearrange ``a[left:right + 1]`` (no NaN) so that ``a[k]``
+    is its (k - left)-th smallest, the smaller before it, the larger after it; a pivot near
+    the k-th is first selected in a sample of the range (in place, recursively)."""
+    while right > left:
+        if right - left > 600:
+            n = right - left + 1
+            i = k - left + 1
+            z = math.log(n)
+            s = 0.5 * math.exp(2.0 * z / 3.0)
+            sd = 0.5 * math.sqrt(z * s * (n - s) / n) * (1.0 if i - n / 2.0 >= 0 else -1.0)
+            new_left = max(left, int(k - i * s / n + sd))
+            new_right = min(right, int(k + (n - i) * s / n + sd))
+            _select(a, new_left, new_right, k)
+        t = a[k]
+        i = left
+        j = right
+        a[left], a[k] = a[k], a[left]
+        if a[right] > t:
+            a[right], a[left] = a[left], a[right]
+        while i < j:
+            a[i], a[j] = a[j], a[i]
+            i += 1
+            j -= 1
+            while a[i] < t:
+                i += 1
+            while a[j] > t:
+                j -= 1
+        if a[left] == t:
+            a[left], a[j] = a[j], a[left]
+        else:
+            j += 1
+            a[j], a[right] = a[right], a[j]
+        if j <= k:
+            left = j + 1
+        if k <= j:
+            right = j - 1
+
+
+@compiled()
+def _order_stats(a, ks):
+    """Rearrange ``a`` so that each ``a[k]`` of ``ks`` (ascending, distinct) is the k-th
+    smallest of ``a`` (each selected in what lies above the previous k). False (``a``
+    untouched) if ``a`` holds a NaN: then let numpy do it."""
+    n = a.shape[0]
+    for i in range(n):
+        if a[i] != a[i]:
+            return False
+    lo = 0
+    for q in range(ks.shape[0]):
+        k = ks[q]
+        if k == lo:  # the smallest of what is left: one pass
+            m = lo
+            for i in range(lo + 1, n):
+                if a[i] < a[m]:
+                    m = i
+            a[lo], a[m] = a[m], a[lo]
+        else:
+            _select(a, lo, n - 1, k)
+        lo = k + 1
+    return True
+
+
+def linear_percentiles(values: np.ndarray, qs: tuple[float, ...]) -> list[float] | None:
+    """``np.percentile(values, qs).tolist()`` (the default linear method), the same doubles,
+    from order statistics selected in place (``values`` is reordered); None where numpy
+    must do it (a NaN among them)."""
+    n = len(values)
+    if n == 0:
+        return None
+    at = [(n - 1) * (q / 100) for q in qs]  # numpy's virtual indexes: (n - 1) * quantile
+    ks = {n - 1 for v in at if v >= n - 1}
+    ks |= {k for v in at if v < n - 1 for k in (math.floor(v), math.floor(v) + 1)}
+    if not _order_stats(values, np.array(sorted(ks), dtype=np.int64)):
+        return None
+    out = []
+    for v in at:
+        if v >= n - 1:  # numpy takes the last value (lerp of it with itself)
+            out.append(float(values[n - 1]))
+            continue
+        prev = math.floor(v)
+        t = v - prev
+        a, b = float(values[prev]), float(values[prev + 1])
+        diff = b - a  # numpy's _lerp
+        out.append(b - diff * (1 - t) if t >= 0.5 else a + diff * t)
+    return out
+
+
 def tally(
     fed: np.ndarray,
     rec: Records,
@@ -118,7 +210,8 @@ def tally(
     picks, starts, rules = (np.zeros(k, np.int64) for k in (n_robots, n_robots + 1, n_rules + 1))
     welch_parts, welch_picked = np.zeros(WELCH_BINS, np.int64), np.zeros(WELCH_BINS)
     states = np.zeros((n_robots, len(STATES)))
-    cycles, grouped, spare = np.empty(n_parts), np.empty(n_parts), np.empty(n_parts)
+    # scratch the KPIs are read from and never returned: memory earlier runs let go
+    cycles, grouped, spare = (take(k, n_parts) for k in ("cycles", "grouped", "spare"))
     owner = spare.view(np.int64)  # scratch, then the spare copy of the cycles
     out_i = (picks, starts, rules, welch_parts, owner)
     out_f = (states, welch_picked)
@@ -126,6 +219,7 @@ def tally(
     presented, picked, noops = _tally(
         fed, rec, n_spans, window, COL_OF, out_i, out_f, (cycles, grouped, spare)
     )
+    quantiles = linear_percentiles(spare[:picked], PERCENTILES) if picked else None
     return KpiTally(
         presented=int(presented),
         picked=int(picked),
@@ -139,4 +233,5 @@ def tally(
         welch_parts=welch_parts,
         welch_picked=welch_picked,
         spare=spare[:picked],
+        percentiles=None if quantiles is None else (quantiles[0], quantiles[1]),
     )
