@@ -54,3 +54,10 @@ def take(
             buf = np.empty(max(size, 1), dtype=dt)
             _BUFFERS[role] = buf
         return buf[:size].reshape(shape)
+
+
+def clear() -> None:
+    """Let every kept buffer go (a memory measure that should count a run's whole arrays
+    calls it first; the next runs allocate afresh)."""
+    with _LOCK:
+        _BUFFERS.clear()
