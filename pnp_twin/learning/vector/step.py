@@ -134,7 +134,7 @@ def _gripping_rate(fed, holder, epi, ef, now):
     return 100.0 * picked / seen if seen > 0 else 0.0
 
 
-@compiled()
+@compiled(inline=True)
 def _collect(s, ep, out, e, ef, now):
     """EpochDriver._collect for line e: picks of the options running, then the options that
     ended for the robots deciding now; adds picks, NooPs and eq. 1 + eq. 2 per robot."""
@@ -177,7 +177,7 @@ def _choices(p, s, st, sc, now, cand):
     return any_choice
 
 
-@compiled()
+@compiled(inline=True)
 def _act(p, s, ep, e, codes, keep):
     """EpochDriver.act for line e: the deciding robots' rules set to ``codes`` (kept with
     ``keep``), their options opened, released."""
@@ -240,7 +240,10 @@ def step_lines(p, env, lines, streams, recs, scratch, episodes, out, codes, mode
 def _step_line(p, env, lines, streams, rec, sc, episodes, out, codes, mode, e):
     """Line e's step (see :func:`step_lines`): the body of its loop, in a function of its
     own because numba's parallel loop loses writes made through a structure's attribute
-    inside it (``out.rewards[e, :] = 0.0`` had no effect there, numba 0.68)."""
+    inside it (``out.rewards[e, :] = 0.0`` had no effect there, numba 0.68). The helpers
+    it calls with the batch's whole structures (``_act``, ``_collect``, ``_close``) are
+    inlined: a call copies each structure's arrays, and with them not inlined the step ran
+    at about half the speed (``python bench/bench_vector_env.py --threads 1``)."""
     ef, ei = env.ef, env.ei
     pe = params_of(p, p.ip, e)
     s = state_of(lines, e)
@@ -272,7 +275,7 @@ def _step_line(p, env, lines, streams, rec, sc, episodes, out, codes, mode, e):
     _close(env, s, st, episodes.epi[e], out, e, fresh, before)
 
 
-@compiled()
+@compiled(inline=True)
 def _close(env, s, st, epi, out, e, fresh, before):
     """The step's results for line e at its new epoch (PickPlaceEnv.step and _get_info)."""
     ef, ei = env.ef, env.ei
