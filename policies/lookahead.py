@@ -232,13 +232,7 @@ class Lookahead:
             self._copy = self._start()
         t0 = time.process_time()
         line = self._follow(decision)
-        picks = {rule: RULES[rule](decision, self.rng) for rule in TRIED}
-        candidates = list(dict.fromkeys([picks[self.base], *picks.values()]))
-        k = candidates[0]
-        if len(candidates) > 1:
-            totals = self.values(line, candidates)
-            k = candidates[max(range(len(candidates)), key=lambda i: (totals[i], -i))]
-            self.planned += 1
+        picks, _, _, k = self.plan(decision, line)
         self.last_rule = (
             self.base if k == picks[self.base] else next(r for r in TRIED if picks[r] == k)
         )
@@ -247,6 +241,22 @@ class Lookahead:
         self.decisions += 1
         self.cpu += time.process_time() - t0
         return k
+
+    def plan(
+        self, decision: Decision, line: Any
+    ) -> tuple[dict[str, int], list[int], list[int] | None, int]:
+        """One decision's plan: each tried rule's pick, the distinct candidates (the base
+        rule's first), their totals over the futures from ``line`` (None when there is one
+        candidate: nothing to plan) and the candidate taken (the most parts, the base
+        rule's pick on ties)."""
+        picks = {rule: RULES[rule](decision, self.rng) for rule in TRIED}
+        candidates = list(dict.fromkeys([picks[self.base], *picks.values()]))
+        if len(candidates) == 1:
+            return picks, candidates, None, candidates[0]
+        totals = self.values(line, candidates)
+        self.planned += 1
+        k = candidates[max(range(len(candidates)), key=lambda i: (totals[i], -i))]
+        return picks, candidates, totals, k
 
     def stats(self) -> dict[str, Any]:
         """Decisions, planned decisions (two or more candidates), CPU seconds and ms per

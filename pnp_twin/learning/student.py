@@ -42,7 +42,6 @@ from pnp_twin.policies.hdqn.features import DecisionFeatures
 from pnp_twin.policies.hdqn.features import size as feature_size
 from pnp_twin.policies.hdqn.policy import HDQNPolicy
 from pnp_twin.policies.lookahead import TRIED, Lookahead, better_base, parse
-from pnp_twin.policies.rules import RULES
 from pnp_twin.twin.camera import BeltCamera
 from pnp_twin.twin.decision import Decision, RobotSpec
 from pnp_twin.twin.loader import load_scenario, parse_sets, with_overrides
@@ -144,13 +143,8 @@ class Teacher(Lookahead):
         if self._copy is None:
             self._copy = self._start()
         line = self._follow(decision)
-        picks = {rule: RULES[rule](decision, self.rng) for rule in TRIED}
-        candidates = list(dict.fromkeys([picks[self.base], *picks.values()]))
-        k = candidates[0]
-        if len(candidates) > 1:
-            totals = self.values(line, candidates)
-            k = candidates[max(range(len(candidates)), key=lambda i: (totals[i], -i))]
-            self.planned += 1
+        picks, candidates, totals, k = self.plan(decision, line)
+        if totals is not None:
             futures = 1 if self.settings.oracle else self.settings.futures
             own = [picks[r] for r in RULE_ORDER]
             assert self.camera is not None
