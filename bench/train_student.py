@@ -30,6 +30,7 @@ import shutil
 from pathlib import Path
 
 from pnp_twin.learning.student import LineSpec, StudentArgs, train_student
+from pnp_twin.policies.hdqn.features import SETS
 
 
 def lines(argv: list[str]) -> tuple[list[LineSpec], list[str]]:
@@ -71,7 +72,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--lr", type=float, default=d.lr)
     ap.add_argument("--floor", type=float, default=d.floor)
     ap.add_argument("--workers", type=int, default=d.workers)
-    ap.add_argument("--view", choices=("window", "belt"), default=d.view)
+    ap.add_argument("--view", choices=("none", "window", "belt"), default=d.view)
+    ap.add_argument("--features", choices=SETS, default=d.features)
+    ap.add_argument("--network", default=d.network)
     ap.add_argument("--ship", type=Path, default=None)
     ap.add_argument("--ship-only", action="store_true", help="copy OUT/NAME, train nothing")
     a = ap.parse_args(rest)
@@ -91,6 +94,8 @@ def main(argv: list[str] | None = None) -> None:
         floor=a.floor,
         workers=a.workers,
         view=a.view,
+        features=a.features,
+        network=a.network,
     )
     if a.ship_only:
         if a.ship is None:

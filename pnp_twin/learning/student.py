@@ -6,15 +6,17 @@ that part and every robot then follows the base rule. Those per-candidate values
 labels of the kind :mod:`pnp_twin.learning.rollout` computes, measured by the planner itself.
 This module
 
-1. runs lines under a :class:`Teacher` (the lookahead controller that also records, at each
-   decision with two or more distinct candidates, the belt image, the decision features of
+1. runs lines under a :class:`Teacher` (the lookahead controller, with 128 futures by
+   default so that its values carry little noise, that also records, at each decision with
+   two or more distinct candidates, the belt image, the decision features of
    :mod:`pnp_twin.policies.hdqn.features`, the value of each rule's pick and which rules pick
    the teacher's part); with a ``student`` the student acts (DAgger: the states the student
    visits, labelled by the teacher), the teacher with probability ``beta``;
-2. fits the student's network to pick the teacher's part: cross-entropy of the softmax over
-   the rules against the set of rules that pick it (several rules often pick the same part),
-   each row weighted by how much the choice matters (the spread of its candidates' values,
-   plus a floor), :func:`fit`;
+2. fits the student's network (by default on the features alone, ``view = "none"``) to pick
+   the teacher's part: cross-entropy of the softmax over the rules against the set of rules
+   that pick it (several rules often pick the same part), each row weighted by how much the
+   choice matters (the spread of its candidates' values, plus a floor), Adam on a one-cycle
+   learning-rate schedule, :func:`fit`;
 3. writes a checkpoint loadable as ``--policy hdqn:DIR`` (``targets = "teacher"``, the
    feature set in ``features``).
 
@@ -52,7 +54,8 @@ log = logging.getLogger(__name__)
 
 RULE_ORDER: tuple[str, ...] = TRIED
 """The student's actions: the lookahead's candidate rules, in its order."""
-FEATURES = "student-v1"
+FEATURES = "student-v2"
+"""The feature set new students see (``student-v1`` lacks the second-pick features)."""
 CHANNELS = 2
 EPISODE_SEED_BASE = 3_000_000
 """Label runs use seeds 3,000,000 + 1,000 line + i (disjoint from evaluation seeds 0..N-1,
@@ -106,10 +109,11 @@ class Teacher(Lookahead):
         beta: float = 0.0,
         line: int = 0,
         seed: int = 0,
+        features: str = FEATURES,
     ) -> None:
         _, _, arg = spec.partition(":")
         super().__init__(parse(arg))
-        self.features = DecisionFeatures(FEATURES, RULE_ORDER)
+        self.features = DecisionFeatures(features, RULE_ORDER)
         self.student = student
         self.beta = beta
         self.line_index = line
@@ -168,7 +172,7 @@ class Teacher(Lookahead):
         n = len(self.rows)
         if not n:
             assert self.camera is not None
-            e = feature_size(FEATURES, len(RULE_ORDER), len(self.features.robots))
+            e = feature_size(self.features.name, len(RULE_ORDER), len(self.features.robots))
             r = len(RULE_ORDER)
             return TeacherLabels(
                 np.zeros((0, *self.camera.shape), np.uint8),
@@ -212,17 +216,31 @@ def resolved(teacher: str, line: Scenario) -> str:
     return replace(s, base=better_base(line)).name
 
 
-def label_run(job: tuple[LineSpec, int, int, float, str, str | None, float]) -> TeacherLabels:
-    """One labelled run (worker entry point): line, line index, seed, duration, teacher,
-    student checkpoint (DAgger) or None, beta."""
-    spec, index, seed, duration, teacher, student, beta = job
+@dataclass(frozen=True)
+class LabelJob:
+    """One labelled run: the line (and its index in the training set), seed, feeding time,
+    teacher, the student checkpoint acting in DAgger rounds (None: the teacher acts) and the
+    teacher's share ``beta`` of those decisions, and the feature set recorded."""
+
+    line: LineSpec
+    index: int
+    seed: int
+    duration: float
+    teacher: str
+    student: str | None = None
+    beta: float = 0.0
+    features: str = FEATURES
+
+
+def label_run(job: LabelJob) -> TeacherLabels:
+    """One labelled run (worker entry point)."""
     torch.set_num_threads(1)
-    line = spec.load()
-    teacher = resolved(teacher, line)
-    scenario = with_overrides(line, {"warmup": 0.0, "duration": duration})
-    pupil = HDQNPolicy.load(student) if student else None
-    policy = Teacher(teacher, pupil, beta, index, seed)
-    simulate(scenario, policy, seed=seed, engine="fast")
+    line = job.line.load()
+    teacher = resolved(job.teacher, line)
+    scenario = with_overrides(line, {"warmup": 0.0, "duration": job.duration})
+    pupil = HDQNPolicy.load(job.student) if job.student else None
+    policy = Teacher(teacher, pupil, job.beta, job.index, job.seed, job.features)
+    simulate(scenario, policy, seed=job.seed, engine="fast")
     return policy.labels()
 
 
@@ -233,7 +251,9 @@ class StudentArgs:
     lines: list[LineSpec] = field(default_factory=lambda: [LineSpec()])
     out: str = "runs/student"
     name: str = "student"
-    teacher: str = "lookahead:K=16,H=1,base=auto"
+    teacher: str = "lookahead:K=128,H=1,base=auto"
+    """The labelling lookahead: more futures than the controller's default give values
+    with less noise (the student learns their mean, so it may beat a noisier teacher)."""
     seed: int = 1
     runs: int = 8
     """Labelled runs per line and round."""
@@ -243,16 +263,21 @@ class StudentArgs:
     """Rounds after the first in which the student acts and the teacher labels."""
     beta: float = 0.3
     """In DAgger rounds, probability that the teacher acts at a decision."""
-    epochs: int = 40
-    lr: float = 1e-3
+    epochs: int = 30
+    lr: float = 3e-3
+    """Peak learning rate of the one-cycle schedule."""
+    network: str = "student-wide"
     weight_decay: float = 1e-4
     batch_size: int = 256
     floor: float = 0.05
     """Row weight = spread of the candidates' values (parts per future) + floor."""
     holdout: float = 0.1
     """Share of each round's runs held out to measure agreement with the teacher."""
-    view: str = "window"
-    """What image the student sees: ``window`` (the deciding robot's workspace) or ``belt``."""
+    view: str = "none"
+    """What image the student sees: ``none`` (the decision features only), ``window`` (the
+    deciding robot's workspace) or ``belt``."""
+    features: str = FEATURES
+    """The decision feature set (:data:`pnp_twin.policies.hdqn.features.SETS`)."""
     workers: int = 1
 
 
@@ -270,9 +295,12 @@ def windows(obs: np.ndarray, robots: np.ndarray, camera: BeltCamera) -> np.ndarr
 
 
 def student_view(labels: TeacherLabels, view: str, scenario: Scenario) -> TeacherLabels:
-    """The labels with the images the student sees (``view`` window or belt)."""
+    """The labels with the images the student sees (``view`` none, window or belt)."""
     if view == "belt":
         return labels
+    if view == "none":
+        obs = np.zeros((len(labels), 0, 1, 1), np.uint8)
+        return TeacherLabels(obs, labels.extra, labels.values, labels.mask, labels.line)
     n = scenario.robots.count
     camera = BeltCamera(scenario, labels.obs.shape[1])
     obs = windows(labels.obs, labels.extra[:, :n].argmax(axis=1), camera)
@@ -284,7 +312,7 @@ def fit(labels: TeacherLabels, args: StudentArgs, n_robots: int) -> DQNAgent:
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
     k = labels.values.shape[1]
-    config = AgentConfig("student", args.lr, 0.0, False)
+    config = AgentConfig(args.network, args.lr, 0.0, False)
     shape = tuple(labels.obs.shape[1:])
     agent = DQNAgent(config, shape, k, labels.extra.shape[1], "cpu")  # type: ignore[arg-type]
     net = agent.q
@@ -295,6 +323,8 @@ def fit(labels: TeacherLabels, args: StudentArgs, n_robots: int) -> DQNAgent:
     spread = labels.values.max(axis=1) - labels.values.min(axis=1)
     weight = torch.as_tensor(spread + args.floor, dtype=torch.float32)
     weight = weight / weight.mean()
+    steps = args.epochs * -(-len(labels) // args.batch_size)
+    schedule = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=args.lr, total_steps=steps)
     net.train()
     for _ in range(args.epochs):
         order = torch.as_tensor(rng.permutation(len(labels)))
@@ -306,6 +336,7 @@ def fit(labels: TeacherLabels, args: StudentArgs, n_robots: int) -> DQNAgent:
             opt.zero_grad()
             loss.backward()
             opt.step()
+            schedule.step()
     net.eval()
     agent.target.load_state_dict(net.state_dict())
     return agent
@@ -328,18 +359,20 @@ def agreement(agent: DQNAgent, labels: TeacherLabels) -> dict[str, float]:
     }
 
 
-def _jobs(
-    args: StudentArgs, round_: int, student: str | None
-) -> list[tuple[LineSpec, int, int, float, str, str | None, float]]:
+def _jobs(args: StudentArgs, round_: int, student: str | None) -> list[LabelJob]:
     out = []
     for j, spec in enumerate(args.lines):
         for i in range(args.runs):
             seed = EPISODE_SEED_BASE + 1_000 * j + 100 * round_ + i + 10_000 * args.seed
-            out.append((spec, j, seed, args.duration, args.teacher, student, args.beta))
+            out.append(
+                LabelJob(
+                    spec, j, seed, args.duration, args.teacher, student, args.beta, args.features
+                )
+            )
     return out
 
 
-def _label_all(jobs: list[Any], workers: int) -> list[TeacherLabels]:
+def _label_all(jobs: list[LabelJob], workers: int) -> list[TeacherLabels]:
     if workers > 1:
         from pnp_twin.parallel import pool_map_ordered
 
@@ -362,7 +395,7 @@ def meta_for(args: StudentArgs, agent: DQNAgent, base: Scenario, counters: dict[
         "view": args.view,
         "termination": "t_continue",
         "targets": "teacher",
-        "features": FEATURES,
+        "features": args.features,
         "rules": list(RULE_ORDER),
         "n_robots": n,
         "scenario": base.model_dump(mode="json"),

@@ -88,7 +88,7 @@ class Meta(_Strict):
     format: Literal[1]
     name: str = ""
     mode: Literal[MODES]  # type: ignore[valid-type]
-    view: Literal["window", "belt"] | None = None
+    view: Literal["window", "belt", "none"] | None = None
     termination: Literal["t_continue", "t_all", "t_any"] | None = None
     targets: Literal["td", "rollout", "teacher"] | None = None
     features: str | None = None
@@ -101,7 +101,7 @@ class Meta(_Strict):
     counters: dict[str, float | int | None] = Field(default_factory=dict)
     rng: dict[str, Any] | None = None  # older checkpoints kept numpy's RNG state here
     obs_shape: Annotated[
-        list[Annotated[int, Field(ge=1, le=4096)]], Field(min_length=3, max_length=3)
+        list[Annotated[int, Field(ge=0, le=4096)]], Field(min_length=3, max_length=3)
     ]
     n_actions: Annotated[int, Field(ge=1, le=MAX_ACTIONS)]
     n_extra: Annotated[int, Field(ge=0, le=256)]
@@ -132,6 +132,13 @@ class Meta(_Strict):
     @model_validator(mode="after")
     def _consistent(self) -> Meta:
         c, h, w = self.obs_shape
+        if self.view == "none" and (self.obs_shape != [0, 1, 1] or self.features is None):
+            raise ValueError(
+                f"obs_shape: {self.obs_shape} with view 'none' (no image); a student that "
+                "sees only its features has obs_shape [0, 1, 1] and a feature set"
+            )
+        if self.view != "none" and min(self.obs_shape) < 1:
+            raise ValueError(f"obs_shape: {self.obs_shape}: every size must be at least 1")
         if c > 3:
             raise ValueError(f"obs_shape: {c} channels; the belt image has 1 to 3")
         if c * h * w > MAX_CELLS:

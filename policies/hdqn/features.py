@@ -1,9 +1,10 @@
 """Decision features of the lookahead's student: what the rules' picks and the robots look like.
 
 The rollout-trained HDQN sees the belt image and the deciding robot's one-hot. The student
-trained on the lookahead controller's values (:mod:`pnp_twin.learning.student`) sees its
-robot's window of the image and a short vector of what the planner's choice turns on, all of
-it observable at the decision:
+trained on the lookahead controller's values (:mod:`pnp_twin.learning.student`) sees a vector
+of what the planner's choice turns on, all of it observable at the decision (``student-v1``,
+computed here in Python; ``student-v2`` holds the same values and more, computed in one
+compiled pass by :mod:`.features_compiled`):
 
 - per rule (in the checkpoint's rule order): its pick's interception time from the tool, the
   time the pick has left in the deciding robot's workspace, its place across the belt, when
@@ -18,7 +19,11 @@ it observable at the decision:
   in its workspace;
 - the line: belt speed and the feeder's nominal rate (the scenario's, handed over by
   ``bind_run``; the parts fed so far per second when no scenario is bound) and the number of
-  candidates.
+  candidates;
+- ``student-v2`` only: per rule's pick, when the robot would have placed a second part after
+  it and how many parts it could choose from then; the candidates one by one (place, across,
+  interception time), which of them each rule picks, the nearest unclaimed parts upstream,
+  and each robot's place along the line.
 
 Every value is clipped to a small non-negative range (the numpy forward pass's bound needs
 inputs >= 0). :data:`SETS` names the feature sets; a checkpoint records its set in ``meta.json``
@@ -36,8 +41,9 @@ import numpy as np
 from pnp_twin.policies.rules import RULES
 from pnp_twin.twin.decision import Decision, RobotSpec
 
-SETS = ("student-v1",)
-"""Known feature sets (``meta.json``'s ``features``)."""
+SETS = ("student-v1", "student-v2")
+"""Known feature sets (``meta.json``'s ``features``); ``student-v2`` adds the deciding robot's
+second pick and is computed by the compiled pass of :mod:`.features_compiled`."""
 
 HORIZON = 2.0
 """Times (interception, time left, busy) are clipped to [0, HORIZON] s."""
@@ -52,6 +58,10 @@ PER_ROBOT = 4
 def size(name: str, n_rules: int, n_robots: int) -> int:
     """Length of feature set ``name``'s vector (the robot one-hot included)."""
     check(name)
+    if name != "student-v1":
+        from pnp_twin.policies.hdqn.features_compiled import size as compiled_size
+
+        return compiled_size(n_rules, n_robots)
     return n_robots + PER_PICK * n_rules + PER_ROBOT * n_robots + 3
 
 
@@ -71,11 +81,17 @@ class DecisionFeatures:
         self.belt: Any = None
         self.rate: float | None = None
         self.rng = np.random.default_rng(0)
+        self._table = np.zeros((0, 8))
+        self._work = np.empty(0)  # the compiled pass's scratch, grown on demand
 
     def reset(self, robots: list[RobotSpec], rate: float | None = None) -> None:
         """The run's robots and the feeder's nominal rate (None: measured from the belt)."""
         self.robots = list(robots)
         self.rate = rate
+        if self.name != "student-v1":
+            from pnp_twin.policies.hdqn.features_compiled import robot_table
+
+            self._table = robot_table(self.robots)
 
     def attach(self, belt: Any) -> None:
         self.belt = belt
@@ -91,6 +107,8 @@ class DecisionFeatures:
         now = decision.time
         if picks is None:
             picks = self.picks(decision)
+        if self.name != "student-v1":
+            return self._compiled(decision, picks)
         out = [0.0] * size(self.name, len(self.rules), n)
         out[decision.robot] = 1.0
         j = n
@@ -132,6 +150,34 @@ class DecisionFeatures:
         out[j + 1] = self._rate(now) / 10.0
         out[j + 2] = len(decision.parts) / 10.0
         return np.asarray(out, dtype=np.float32)
+
+    def _compiled(self, decision: Decision, picks: list[int]) -> np.ndarray:
+        from pnp_twin.policies.hdqn.features_compiled import fill, work_size
+
+        spec = decision.spec
+        cand = np.array((decision.xs, decision.ys, decision.times), dtype=np.float64)
+        line = np.array((spec.belt_speed, spec.belt_width, self._rate(decision.time)))
+        belt = self._belt(decision.time)
+        need = work_size(len(self.robots), cand.shape[1], belt.shape[1])
+        if self._work.shape[0] < need:
+            self._work = np.empty(2 * need)
+        # float32 out: each value rounds as astype would round it
+        out = np.empty(size(self.name, len(self.rules), len(self.robots)), np.float32)
+        fill(out, decision.robot, decision.time, cand, np.array(picks, np.int64),
+             self._table, line, belt, self._work)  # fmt: skip
+        return out
+
+    def _belt(self, now: float) -> np.ndarray:
+        """The on-belt parts' fed time, y, holder (-1: none) and grip time, as rows."""
+        belt = self.belt
+        if belt is None:
+            return np.zeros((4, 0))
+        on = belt.on_belt(now)
+        lo, hi = on.start, on.stop
+        return np.array(
+            [belt.fed[lo:hi], belt.y[lo:hi], belt.holder[lo:hi], belt.left_at[lo:hi]],
+            dtype=np.float64,
+        ).reshape(4, hi - lo)
 
     def _rate(self, now: float) -> float:
         if self.rate is not None:

@@ -98,11 +98,18 @@ def student(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -
     return QNetwork(obs_shape, n_actions, n_extra, [], (64, 64))
 
 
+def student_wide(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -> QNetwork:
+    """The student of the ``student-v2`` features (about 180 inputs): two FC layers of 128
+    ReLUs, still a numpy forward pass per decision."""
+    return QNetwork(obs_shape, n_actions, n_extra, [], (128, 128))
+
+
 PRESETS: dict[str, Callable[[tuple[int, int, int], int, int], QNetwork]] = {
     "paper": paper,
     "compact": compact,
     "pooled": pooled,
     "student": student,
+    "student-wide": student_wide,
 }
 """Network preset name -> builder ``(obs_shape, n_actions, n_extra) -> QNetwork``."""
 

@@ -122,12 +122,18 @@ class NumpyQ:
     """The forward pass of a fully connected QNetwork in numpy, from a copy of its weights
     taken at construction (see the module docstring); :class:`Unsupported` otherwise."""
 
-    def __init__(self, network: Any) -> None:
+    def __init__(self, network: Any, compiled: bool = False) -> None:
         self.layers = dense_layers(network)
         self.n_extra = int(network.n_extra)
         self.n_in = self.layers[0].fused.shape[0]  # inputs and the bias's 1
         self._buffers = [np.ones(layer.out + 1, np.float32) for layer in self.layers]
         self.undecided = 0  # near ties handed back to torch
+        self.compiled = compiled
+        """Greedy actions by :mod:`.dense_compiled` (one call instead of numpy's products)."""
+        if compiled:
+            from pnp_twin.policies.hdqn.dense_compiled import pack
+
+            self._packed = pack(self.layers)
 
     def inputs(self, obs: np.ndarray, extra: np.ndarray | None = None) -> np.ndarray:
         """The first layer's input (exact, >= 0): the image flattened, the extras (the
@@ -180,6 +186,14 @@ class NumpyQ:
     def greedy(self, obs: np.ndarray, extra: np.ndarray | None = None) -> int | None:
         """Torch's greedy action for one observation, or ``None`` when the values are too
         close to rank without torch's own arithmetic."""
+        if self.compiled:
+            from pnp_twin.policies.hdqn.dense_compiled import greedy
+
+            action = greedy(self.inputs(obs, extra), *self._packed)
+            if action >= 0:
+                return int(action)
+            self.undecided += 1
+            return None
         q, err = self.forward(self.inputs(obs, extra))
         best = int(q.argmax())
         q = q.astype(np.float64)

@@ -33,6 +33,9 @@ from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 
+_NO_IMAGE = np.zeros((1, 0, 1, 1), np.uint8)
+"""The image of a student that sees its decision features only."""
+
 
 def camera_scenario(base: dict[str, Any], belt: Belt, robots: list[RobotSpec]) -> Scenario:
     """The trained scenario with the live line's belt and workspaces (what the camera uses)."""
@@ -79,6 +82,7 @@ class HDQNPolicy(RuleChoosingPolicy):
         # checkpoints from before the view option saw windows in the multi-agent modes
         view = meta.get("view", meta.get("train_args", {}).get("view", "window"))
         self.whole_belt: bool = self.mode == "single" or view == "belt"
+        self.sees_image: bool = view != "none"  # a student may see its features only
         self.name = meta.get("name", f"hdqn-{self.mode}")
         self.camera: BeltCamera | None = None
         self._decisions = 0  # a fresh image per decision (claims change between them)
@@ -130,6 +134,9 @@ class HDQNPolicy(RuleChoosingPolicy):
         """Called by the line with its belt: build the camera for this line's geometry."""
         if self.features is not None:
             self.features.attach(belt)
+        if not self.sees_image:
+            self.camera = None
+            return
         scenario = camera_scenario(self.meta["scenario"], belt, self.robots)
         camera = BeltCamera(scenario, self.channels)
         camera.attach(belt)
@@ -147,20 +154,51 @@ class HDQNPolicy(RuleChoosingPolicy):
 
     def observe(self, decision: Decision) -> tuple[np.ndarray, np.ndarray | None]:
         """The network input for a decision: (1, C, H, W) image and the extra features."""
+        obs = self.image(decision)
+        if self.mode == "single":
+            return obs, None
+        if self.features is not None:
+            return obs, self.features.vector(decision)[None]
+        return obs, robot_onehot([decision.robot], len(self.robots))
+
+    def image(self, decision: Decision) -> np.ndarray:
+        """The (1, C, H, W) image a decision shows the network (C = 0: a student that sees
+        its features only)."""
+        if not self.sees_image:
+            return _NO_IMAGE
         camera = self.camera
         if camera is None:
             raise RuntimeError("HDQNPolicy needs the belt: the line calls attach(belt)")
         now, robot, free = decision.time, decision.robot, (decision.robot,)
         if self.mode == "single":
-            return camera.belt(now, free)[None], None
+            return camera.belt(now, free)[None]
         self._decisions += 1
         if self.whole_belt:
-            obs = camera.belt(now, free)[None]
-        else:
-            obs = camera.window(robot, now, free, self._decisions)[None]
-        if self.features is not None:
-            return obs, self.features.vector(decision)[None]
-        return obs, robot_onehot([robot], len(self.robots))
+            return camera.belt(now, free)[None]
+        return camera.window(robot, now, free, self._decisions)[None]
+
+    def choose(self, decision: Decision) -> int:
+        """The part the greedy rule picks. A student of the lookahead computes every rule's
+        pick once (its features need them) and, as the lookahead does, asks its network only
+        when the rules disagree (when they agree the decision counts under its first rule)."""
+        features = self.features
+        if features is None or "SIRO" in self.rules:
+            return super().choose(decision)
+        picks = features.picks(decision)
+        first = picks[0]
+        if all(p == first for p in picks):
+            self.last_rule = self.rules[0]
+            return first
+        action = self._greedy(self.image(decision), features.vector(decision, picks)[None])
+        self.last_rule = self.rules[action]
+        return picks[action]
+
+    def _greedy(self, obs: np.ndarray, extra: np.ndarray | None) -> int:
+        action = None if self._numpy is None else self._numpy.greedy(obs, extra)
+        if action is None:
+            self.torch_decisions += 1
+            action = int(self.agent.greedy(obs, extra)[0])
+        return action
 
     def _numpy_q(self) -> NumpyQ | None:
         """The numpy forward of the agent's current weights, when it can stand in for torch
@@ -168,16 +206,14 @@ class HDQNPolicy(RuleChoosingPolicy):
         if not self.numpy_forward or self.agent.device.type != "cpu":
             return None
         try:
-            return NumpyQ(self.agent.q)
+            # a student's decisions must cost a small share of its teacher's: one compiled call
+            return NumpyQ(self.agent.q, compiled=self.features is not None)
         except Unsupported:
             return None
 
     def select_rule(self, decision: Decision) -> str:
         obs, extra = self.observe(decision)
-        action = None if self._numpy is None else self._numpy.greedy(obs, extra)
-        if action is None:
-            self.torch_decisions += 1
-            action = int(self.agent.greedy(obs, extra)[0])
+        action = self._greedy(obs, extra)
         if self.mode == "single":
             action = decode_joint(action, len(self.robots), len(self.rules))[decision.robot]
         return self.rules[action]

@@ -13,6 +13,7 @@ pytest.importorskip("torch")
 from pnp_twin.learning.student import (  # noqa: E402
     FEATURES,
     RULE_ORDER,
+    LabelJob,
     LineSpec,
     StudentArgs,
     Teacher,
@@ -52,7 +53,7 @@ def test_teacher_acts_as_the_lookahead() -> None:
 
 
 def test_labels_are_the_teachers_values_and_reproducible() -> None:
-    job = (LineSpec(), 0, 11, 20.0, TEACHER, None, 0.0)
+    job = LabelJob(LineSpec(), 0, 11, 20.0, TEACHER)
     a, b = label_run(job), label_run(job)
     assert len(a) > 20
     for f in TeacherLabels.fields():
@@ -107,8 +108,8 @@ def test_shipped_student_follows_its_teacher(name: str) -> None:
     assert policy._numpy is not None  # decisions through numpy, not torch
     simpy = simulate(scenario, make_policy(f"hdqn:{name}", 4), seed=1, engine="simpy")
     assert fast.parts["rule"].tolist() == simpy.parts["rule"].tolist()
-    held = label_run((line, 0, 9_999_001, 60.0, teacher, None, 0.0))
     agent, meta = load_agent(name)
+    held = label_run(LabelJob(line, 0, 9_999_001, 60.0, teacher, features=meta["features"]))
     view = student_view(held, meta["view"], load_scenario("paper_baseline"))
     assert agreement(agent, view)["agreement"] >= floor  # type: ignore[arg-type]
     # the numpy forward pass decides as torch does on these (real) observations

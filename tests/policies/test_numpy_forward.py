@@ -28,15 +28,18 @@ def observations(agent: QAgent, n: int, seed: int) -> tuple[np.ndarray, np.ndarr
     density = rng.uniform(0.0, 0.4, (n, 1, 1, 1))
     obs = (rng.random((n, *agent.obs_shape)) < density).astype(np.uint8)
     extra = None
-    if agent.n_extra:
+    if agent.n_extra and agent.obs_shape[0] == 0:  # a student's features: values in [0, 2)
+        extra = 2 * rng.random((n, agent.n_extra)) * (rng.random((n, agent.n_extra)) < 0.6)
+        extra = extra.astype(np.float32)
+    elif agent.n_extra:
         extra = np.eye(agent.n_extra, dtype=np.float32)[rng.integers(0, agent.n_extra, n)]
     return obs, extra
 
 
-def check(agent: QAgent, obs: np.ndarray, extra: np.ndarray | None) -> int:
+def check(agent: QAgent, obs: np.ndarray, extra: np.ndarray | None, compiled: bool = False) -> int:
     """Every decided action is torch's and torch's values lie within the bound; returns
-    how many were decided."""
-    fast = NumpyQ(agent.q)
+    how many were decided. ``compiled``: the greedy action of :mod:`dense_compiled`."""
+    fast = NumpyQ(agent.q, compiled=compiled)
     want = agent.q_values(obs, extra)
     decided = 0
     for i in range(len(obs)):
@@ -57,15 +60,31 @@ def test_the_shipped_models_greedy_actions_are_torchs(model):
     assert check(agent, obs, extra) >= 0.95 * len(obs)  # near ties are rare
 
 
+@pytest.mark.parametrize("compiled", [False, True])
 @pytest.mark.parametrize(("shape", "actions", "extra"), [((1, 8, 7), 6, 4), ((2, 8, 12), 5, 0)])
-def test_fresh_compact_networks_too(shape, actions, extra):
+def test_fresh_compact_networks_too(shape, actions, extra, compiled):
     torch.manual_seed(7)
     agent = QAgent(AgentConfig(network="compact"), shape, actions, extra)
     obs, ex = observations(agent, 1500, seed=2)
-    assert check(agent, obs, ex) >= 0.9 * len(obs)
+    assert check(agent, obs, ex, compiled) >= 0.9 * len(obs)
 
 
-def test_a_near_tie_is_left_to_torch():
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_students_features_only_network(compiled):
+    """The student's shape: no image (0 channels), about 180 features, 128 x 128 ReLUs; the
+    compiled greedy action decides as often as numpy's, and the same."""
+    torch.manual_seed(3)
+    agent = QAgent(AgentConfig(network="student-wide"), (0, 1, 1), 5, 176)
+    obs, extra = observations(agent, 1500, seed=4)
+    assert check(agent, obs, extra, compiled) >= 0.9 * len(obs)
+    plain, fast = NumpyQ(agent.q), NumpyQ(agent.q, compiled=True)
+    for i in range(300):
+        row = (obs[i : i + 1], extra[i : i + 1])  # type: ignore[index]
+        assert plain.greedy(*row) == fast.greedy(*row)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_near_tie_is_left_to_torch(compiled):
     torch.manual_seed(0)
     agent = QAgent(AgentConfig(network="compact"), (1, 8, 7), 6, 4)
     with torch.no_grad():
@@ -74,7 +93,7 @@ def test_a_near_tie_is_left_to_torch():
         last.bias[1] = last.bias[0]
         last.bias[[2, 3, 4, 5]] = -100.0
     obs, extra = observations(agent, 20, seed=3)
-    fast = NumpyQ(agent.q)
+    fast = NumpyQ(agent.q, compiled=compiled)
     assert all(fast.greedy(obs[i : i + 1], extra[i : i + 1]) is None for i in range(20))
     assert fast.undecided == 20
 
@@ -92,7 +111,9 @@ def test_a_large_network_stays_on_torch():
         NumpyQ(agent.q)
 
 
-@pytest.mark.parametrize("model", ["paper_baseline__async", "paper_baseline__single"])
+@pytest.mark.parametrize(
+    "model", ["paper_baseline__async", "paper_baseline__single", "paper_baseline__student"]
+)
 def test_a_runs_decisions_are_the_same_with_torch_alone(model):
     scenario = with_overrides(load_scenario("paper_baseline"), {"duration": 40.0, "warmup": 5.0})
     base = HDQNPolicy.load(MODELS / model)

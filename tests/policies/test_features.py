@@ -1,0 +1,108 @@
+"""Decision features of the lookahead's students: ``student-v2`` (compiled) keeps every value of
+``student-v1`` (the Python reference), is the same on both engines, stays in the numpy forward
+pass's non-negative range, and its second-pick values are what the geometry says."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pnp_twin.policies.hdqn import features_compiled as fc
+from pnp_twin.policies.hdqn.features import DecisionFeatures, size
+from pnp_twin.policies.rules import RULES
+from pnp_twin.twin.decision import Decision
+from pnp_twin.twin.geometry import intercept_time, move_time
+from pnp_twin.twin.loader import load_scenario, with_overrides
+from pnp_twin.twin.run import simulate
+
+R = ["FIFO", "LIFO", "SD", "LD", "SPT"]
+N = 4
+
+
+class Probe:
+    """Follows SD and records both feature sets and the rules' picks at every decision."""
+
+    name = "probe"
+
+    def __init__(self) -> None:
+        self.v1 = DecisionFeatures("student-v1", R)
+        self.v2 = DecisionFeatures("student-v2", R)
+        self.rows: list[tuple[np.ndarray, np.ndarray, list[int], int]] = []
+        self.last_rule = "SD"
+
+    def reset(self, robots, rng) -> None:  # type: ignore[no-untyped-def]
+        self.v1.reset(robots, 10.0)
+        self.v2.reset(robots, 10.0)
+
+    def attach(self, belt) -> None:  # type: ignore[no-untyped-def]
+        self.v1.attach(belt)
+        self.v2.attach(belt)
+
+    def choose(self, decision: Decision) -> int:
+        picks = self.v1.picks(decision)
+        row = (self.v1.vector(decision, picks), self.v2.vector(decision, picks))
+        self.rows.append((*row, picks, len(decision)))
+        return RULES["SD"](decision, np.random.default_rng(0))
+
+
+def probe(engine: str, scenario: str = "paper_baseline") -> Probe:
+    p = Probe()
+    line = with_overrides(load_scenario(scenario), {"duration": 30.0, "warmup": 0.0})
+    simulate(line, p, seed=5, engine=engine)
+    assert len(p.rows) > 50
+    return p
+
+
+@pytest.mark.parametrize("scenario", ["paper_baseline", "breakdowns"])
+def test_v2_keeps_v1_and_is_the_same_on_both_engines(scenario: str) -> None:
+    fast, simpy = probe("fast", scenario), probe("simpy", scenario)
+    assert len(fast.rows) == len(simpy.rows)
+    picks_end = N + fc.PER_PICK * len(R)
+    line_end = picks_end + fc.PER_ROBOT * N + 3
+    for (v1, v2, _, _), (_, w2, _, _) in zip(fast.rows, simpy.rows, strict=True):
+        np.testing.assert_array_equal(v2, w2)
+        assert v2.shape == (size("student-v2", len(R), N),) and v2.dtype == np.float32
+        per_pick = v2[N:picks_end].reshape(len(R), fc.PER_PICK)[:, :7].ravel()
+        again = np.concatenate([v2[:N], per_pick, v2[picks_end:line_end]])
+        np.testing.assert_array_equal(again, v1)
+
+
+def test_v2_values_are_bounded_and_say_what_they_mean() -> None:
+    n_rules = len(R)
+    picks_end = N + fc.PER_PICK * n_rules
+    slots = picks_end + fc.PER_ROBOT * N + 3
+    for _, v2, picks, m in probe("fast").rows:
+        assert np.isfinite(v2).all() and (v2 >= 0.0).all()  # the numpy forward's bound
+        blocks = v2[N:picks_end].reshape(n_rules, fc.PER_PICK)
+        # a second part is placed after the first is back at the bin
+        back, second = blocks[:, 3], 2.0 * blocks[:, 7]
+        assert (second >= np.minimum(back, fc.HORIZON) - 1e-6).all()
+        shown = v2[slots : slots + fc.PER_SLOT * fc.SLOTS].reshape(fc.SLOTS, fc.PER_SLOT)
+        assert shown[:, 3].sum() == min(m, fc.SLOTS)  # candidates present
+        chosen = v2[slots + fc.PER_SLOT * fc.SLOTS :][: n_rules * fc.SLOTS]
+        chosen = chosen.reshape(n_rules, fc.SLOTS)
+        for r, k in enumerate(picks):
+            assert chosen[r].sum() == (k < fc.SLOTS) and (k >= fc.SLOTS or chosen[r, k] == 1.0)
+
+
+def test_second_pick_follows_the_geometry() -> None:
+    # one robot on [0, 1] m, bin at (0.5, 1), arm 2 m/s, grip and release 0.1 s each
+    me = np.array([0.0, 1.0, 0.5, 1.0, 2.0, 0.0, 0.1, 0.1])
+    v, back = 0.1, 0.5
+    xs, ys = np.array([0.5, 0.2]), np.array([0.5, 0.5])
+    none = np.zeros(0)
+    best, count = fc._second(0, back, me, v, xs, ys, none, none, 4.0)
+    x = 0.2 + v * back
+    t = intercept_time(x - 0.5, 0.5 - 1.0, v, 2.0, 0.0)
+    gx = x + v * t
+    want = back + t + 0.2 + move_time(math.hypot(0.5 - gx, 0.5), 2.0, 0.0)
+    assert count == 1 and best == pytest.approx(want, abs=1e-12)
+    # a part upstream counts too, and the sooner one wins
+    best2, count2 = fc._second(0, back, me, v, xs, ys, np.array([0.45]), np.array([0.9]), 4.0)
+    assert count2 == 2 and best2 < best
+    # a part gone past the workspace by then is no option: nothing left, the horizon
+    assert fc._second(0, 9.0, me, v, xs, ys, none, none, 4.0) == (4.0, 0)
+    # still reachable but finished after the horizon: counted, capped at the horizon
+    assert fc._second(0, 6.0, me, v, xs, ys, none, none, 4.0) == (4.0, 1)
