@@ -49,6 +49,12 @@ def test_the_percentiles_are_numpys() -> None:
         y = x.copy()
         assert linear_percentiles(y, (50, 95)) == want
         assert sorted(y.tolist()) == sorted(x.tolist())  # reordered, the same values
+    for big in (np.inf, 1e308):  # an infinite value, an infinite range
+        x = rng.normal(size=1000)
+        x[[5, 700]] = big, -big
+        want = np.percentile(x, (50, 95)).tolist()
+        got = linear_percentiles(x.copy(), (50, 95))
+        assert got == want
     x = rng.normal(size=100)
     x[3] = np.nan
     assert linear_percentiles(x, (50, 95)) is None  # numpy's, then

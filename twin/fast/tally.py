@@ -176,7 +176,7 @@ BUCKETS = 2048
 
 @compiled()
 def _range(a):
-    """(False, 0, 0) if ``a`` holds a NaN, else (True, its smallest, its largest)."""
+    """(True, its smallest, its largest) of ``a``; False first if it holds a NaN."""
     lo = hi = a[0]
     for i in range(a.shape[0]):
         x = a[i]
@@ -223,6 +223,11 @@ def _kth_values(a, ks, counts, ranks, out):
     ok, lo, hi = _range(a)
     if not ok:
         return False
+    if not hi - lo < math.inf:  # an infinite value or range: select among them all
+        _order_stats(a, ks)
+        for q in range(ks.shape[0]):
+            out[q] = a[ks[q]]
+        return True
     top = counts.shape[0] - 1
     scale = counts.shape[0] / (hi - lo)
     if not scale < math.inf:  # all values equal (or within a few ulps: one bucket then)
