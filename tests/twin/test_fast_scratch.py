@@ -32,19 +32,29 @@ def test_the_percentiles_are_numpys() -> None:
     rng = np.random.default_rng(5)
     for trial in range(3000):
         n = int(rng.integers(1, 60)) if trial % 10 else int(rng.integers(1, 20000))
-        kind = trial % 4
+        kind = trial % 6
         if kind == 0:
             x = rng.normal(size=n)
         elif kind == 1:
             x = rng.integers(0, 5, n).astype(float)  # ties
         elif kind == 2:
             x = np.sort(rng.gamma(2.0, 1.0, n))[:: 1 if trial % 8 < 4 else -1].copy()
-        else:
+        elif kind == 3:
             x = np.full(n, 1.5)
+        elif kind == 4:  # a few ulps apart: one value bucket
+            x = 1.0 + rng.integers(0, 3, n) * 2.0**-52
+        else:  # heavy tails: most values in a few buckets
+            x = rng.exponential(size=n) ** 6
         want = np.percentile(x, (50, 95)).tolist()
         y = x.copy()
         assert linear_percentiles(y, (50, 95)) == want
         assert sorted(y.tolist()) == sorted(x.tolist())  # reordered, the same values
+    for big in (np.inf, 1e308):  # an infinite value, an infinite range
+        x = rng.normal(size=1000)
+        x[[5, 700]] = big, -big
+        want = np.percentile(x, (50, 95)).tolist()
+        got = linear_percentiles(x.copy(), (50, 95))
+        assert got == want
     x = rng.normal(size=100)
     x[3] = np.nan
     assert linear_percentiles(x, (50, 95)) is None  # numpy's, then

@@ -170,26 +170,109 @@ def _order_stats(a, ks):
     return True
 
 
+BUCKETS = 2048
+"""Value buckets of :func:`_kth_values` (a few values each for a run's cycles)."""
+
+
+@compiled()
+def _range(a):
+    """(True, its smallest, its largest) of ``a``; False first if it holds a NaN."""
+    lo = hi = a[0]
+    for i in range(a.shape[0]):
+        x = a[i]
+        if x != x:
+            return False, lo, hi
+        if x < lo:
+            lo = x
+        elif x > hi:
+            hi = x
+    return True, lo, hi
+
+
+@compiled(inline=True)
+def _bucket(x, lo, scale, top):
+    """The bucket of ``x``: ascending with ``x`` (a rounded difference and product are)."""
+    return min(int((x - lo) * scale), top)
+
+
+@compiled()
+def _mark(ks, counts, ranks):
+    """Negate the count of each bucket that holds one of the ``ks``-th smallest values
+    (``ks`` ascending) and write each one's rank among the marked buckets' values."""
+    below = 0  # values in the buckets before bucket j
+    j = 0
+    before = 0  # values in the marked buckets before bucket j
+    for q in range(ks.shape[0]):
+        while below + abs(counts[j]) <= ks[q]:
+            if counts[j] < 0:
+                before -= counts[j]
+            below += abs(counts[j])
+            j += 1
+        if counts[j] > 0:
+            counts[j] = -counts[j]
+        ranks[q] = before + ks[q] - below
+
+
+@compiled()
+def _kth_values(a, ks, counts, ranks, out):
+    """``out[q]``: the ``ks[q]``-th smallest value of ``a`` (``ks`` ascending, distinct),
+    or False if ``a`` holds a NaN. One pass counts the values per bucket of [min, max],
+    another moves those of the buckets holding the ks to the front of ``a``, where
+    :func:`_order_stats` selects them: buckets are ascending, so the ks-th smallest are
+    those buckets' values of the right ranks (``a`` is reordered)."""
+    ok, lo, hi = _range(a)
+    if not ok:
+        return False
+    if not hi - lo < math.inf:  # an infinite value or range: select among them all
+        _order_stats(a, ks)
+        for q in range(ks.shape[0]):
+            out[q] = a[ks[q]]
+        return True
+    top = counts.shape[0] - 1
+    scale = counts.shape[0] / (hi - lo)
+    if not scale < math.inf:  # all values equal (or within a few ulps: one bucket then)
+        scale = 0.0
+    counts[:] = 0
+    for i in range(a.shape[0]):
+        counts[_bucket(a[i], lo, scale, top)] += 1
+    _mark(ks, counts, ranks)
+    m = 0
+    for i in range(a.shape[0]):
+        x = a[i]
+        if counts[_bucket(x, lo, scale, top)] < 0:
+            a[i] = a[m]
+            a[m] = x
+            m += 1
+    _order_stats(a[:m], ranks)
+    for q in range(ks.shape[0]):
+        out[q] = a[ranks[q]]
+    return True
+
+
 def linear_percentiles(values: np.ndarray, qs: tuple[float, ...]) -> list[float] | None:
     """``np.percentile(values, qs).tolist()`` (the default linear method), the same doubles,
-    from order statistics selected in place (``values`` is reordered); None where numpy
-    must do it (a NaN among them)."""
+    from order statistics selected in place (:func:`_kth_values`: ``values`` is
+    reordered); None where numpy must do it (a NaN among them)."""
     n = len(values)
     if n == 0:
         return None
     at = [(n - 1) * (q / 100) for q in qs]  # numpy's virtual indexes: (n - 1) * quantile
-    ks = {n - 1 for v in at if v >= n - 1}
-    ks |= {k for v in at if v < n - 1 for k in (math.floor(v), math.floor(v) + 1)}
-    if not _order_stats(values, np.array(sorted(ks), dtype=np.int64)):
+    wanted = {n - 1 for v in at if v >= n - 1}
+    wanted |= {k for v in at if v < n - 1 for k in (math.floor(v), math.floor(v) + 1)}
+    ks = np.array(sorted(wanted), dtype=np.int64)
+    kth = np.empty(len(ks))
+    counts = take("buckets", BUCKETS, np.int64)
+    if not _kth_values(values, ks, counts, np.empty(len(ks), np.int64), kth):
         return None
+    value = dict(zip(ks.tolist(), kth.tolist(), strict=True))
     out = []
     for v in at:
         if v >= n - 1:  # numpy takes the last value (lerp of it with itself)
-            out.append(float(values[n - 1]))
+            out.append(value[n - 1])
             continue
         prev = math.floor(v)
         t = v - prev
-        a, b = float(values[prev]), float(values[prev + 1])
+        a, b = value[prev], value[prev + 1]
         diff = b - a  # numpy's _lerp
         out.append(b - diff * (1 - t) if t >= 0.5 else a + diff * t)
     return out

@@ -33,7 +33,7 @@ import math
 import sys
 import warnings
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import replace
 
 import numba
@@ -64,6 +64,10 @@ COMPILE_NOTICE = (
     "pnp_twin: compiling the vector env's step (about a minute of CPU, once per change of "
     "the code; later runs read numba's on-disk cache)"
 )
+
+
+Structs = tuple[Params, V.EnvParams, State, Streams, Records, Scratch, V.Episodes, V.StepOut]
+"""What :func:`~pnp_twin.learning.vector.step.step_lines` takes before the codes and modes."""
 
 
 class StreamsExhausted(RuntimeError):
@@ -162,12 +166,14 @@ class LineBatch:
             raise ValueError(f"threads: {threads!r} is not allowed; give 1 to {top}")
         self.threads = threads
         self.n_chunks = min(n, 4 * threads) if threads > 1 else 1
+        self._loaded = False  # whether this batch has stepped (the step compiled)
         self._alloc(int(len(template.fed) * PARTS_SLACK) + PARTS_PAD)
         self._policy_rngs: list[np.random.Generator | None] = [None] * n
         self._failure_rngs: list[list[np.random.Generator]] = [[] for _ in range(n)]
 
     def _alloc(self, parts: int) -> None:
         n, r = self.n, self.n_robots
+        self._built: Structs | None = None
         self.parts = parts
         self.ip = np.repeat(self.ip0[None], n, axis=0)
         self.fs = np.zeros((n, r, L.N_FS))
@@ -201,6 +207,7 @@ class LineBatch:
     def _scratch(self, parts: int) -> None:
         """Per-chunk arrays the kernel writes and no environment reads (and no spans)."""
         c = self.n_chunks
+        self._built = None
         self.rec_i = np.full((c, parts, 2), -1, dtype=np.int64)
         self.rec_f = np.zeros((c, parts, 4))
         self.sp_i = np.zeros((c, 0, 2), dtype=np.int64)
@@ -277,11 +284,13 @@ class LineBatch:
         ``codes`` (n, robots). Each line stepped then runs to its next decision epoch."""
         self.top_up()
         numba.set_num_threads(self.threads)
-        if not V.step_lines.signatures:  # the first step of the process: compile or load
-            with compile_notice():
-                V.step_lines(*self._structs(), codes, mode)
-        else:
-            V.step_lines(*self._structs(), codes, mode)
+        structs = self._structs()
+        if self._loaded:  # compiled: skip asking numba (its signatures list costs 12 us)
+            V.step_lines(*structs, codes, mode)
+        else:  # this batch's first step: maybe the process's first, which compiles or loads
+            with compile_notice() if not V.step_lines.signatures else nullcontext():
+                V.step_lines(*structs, codes, mode)
+            self._loaded = True
         if not V.statuses_ok(self.gs):
             bad = int(np.flatnonzero(self.gs[:, L.STATUS] != L.ST_EPOCH)[0])
             status = int(self.gs[bad, L.STATUS])
@@ -291,10 +300,14 @@ class LineBatch:
                 "pnp_twin.learning.vector.batch"
             )
 
-    def _structs(
-        self,
-    ) -> tuple[Params, V.EnvParams, State, Streams, Records, Scratch, V.Episodes, V.StepOut]:
-        """The arrays as :func:`~pnp_twin.learning.vector.step.step_lines` takes them."""
+    def _structs(self) -> Structs:
+        """The arrays as :func:`~pnp_twin.learning.vector.step.step_lines` takes them, built
+        once per allocation (:meth:`_alloc`, :meth:`_grow` set new arrays and drop them)."""
+        if self._built is None:
+            self._built = self._build_structs()
+        return self._built
+
+    def _build_structs(self) -> Structs:
         return (
             Params(self.fp, self.ip, self.gp, self.gi),
             V.EnvParams(self.ef, self.ei, self.spans, self.ip0),

@@ -163,7 +163,7 @@ def _collect(s, ep, out, e, ef, now):
         rewards[r] += ef[W_EXT] * ext + ef[W_INT] * intr
 
 
-@compiled()
+@compiled(inline=True)
 def _choices(p, s, st, sc, now, cand):
     """Each deciding robot's candidate parts now (0 for the others); True if any has one."""
     ist = s.ist
@@ -229,21 +229,28 @@ def step_lines(p, env, lines, streams, recs, scratch, episodes, out, codes, mode
     n_env = lines.fs.shape[0]
     n_chunks = scratch.c_i.shape[0]
     for k in prange(n_chunks):
-        rec = records_of(recs, k)
-        sc = scratch_of(scratch, k)
-        for e in range(k * n_env // n_chunks, (k + 1) * n_env // n_chunks):
-            if mode[e] != SKIP:
-                _step_line(p, env, lines, streams, rec, sc, episodes, out, codes[e], mode[e], e)
+        lo, hi = k * n_env // n_chunks, (k + 1) * n_env // n_chunks
+        rec, sc = records_of(recs, k), scratch_of(scratch, k)
+        _step_chunk(p, env, lines, streams, rec, sc, episodes, out, codes, mode, lo, hi)
 
 
 @compiled()
+def _step_chunk(p, env, lines, streams, rec, sc, episodes, out, codes, mode, lo, hi):
+    """Lines lo to hi - 1 (one chunk) stepped as :func:`step_lines` says, in a function
+    of its own because numba's parallel loop loses writes made through a structure's
+    attribute inside it (``out.rewards[e, :] = 0.0`` had no effect there, numba 0.68).
+    One call per chunk, not per line: a call passes every array of its structures as
+    separate arguments (some 360 for these)."""
+    for e in range(lo, hi):
+        if mode[e] != SKIP:
+            _step_line(p, env, lines, streams, rec, sc, episodes, out, codes[e], mode[e], e)
+
+
+@compiled(inline=True)
 def _step_line(p, env, lines, streams, rec, sc, episodes, out, codes, mode, e):
-    """Line e's step (see :func:`step_lines`): the body of its loop, in a function of its
-    own because numba's parallel loop loses writes made through a structure's attribute
-    inside it (``out.rewards[e, :] = 0.0`` had no effect there, numba 0.68). The helpers
-    it calls with the batch's whole structures (``_act``, ``_collect``, ``_close``) are
-    inlined: a call copies each structure's arrays, and with them not inlined the step ran
-    at about half the speed (``python bench/bench_vector_env.py --threads 1``)."""
+    """Line e's step (see :func:`step_lines`), inlined in :func:`_step_chunk`, as are the
+    helpers it calls with the batch's whole structures (``_act``, ``_collect``,
+    ``_close``)."""
     ef, ei = env.ef, env.ei
     pe = params_of(p, p.ip, e)
     s = state_of(lines, e)
