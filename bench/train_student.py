@@ -75,6 +75,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--view", choices=("none", "window", "belt"), default=d.view)
     ap.add_argument("--features", choices=SETS, default=d.features)
     ap.add_argument("--network", default=d.network)
+    ap.add_argument(
+        "--also",
+        action="append",
+        default=[],
+        help="an earlier training's folder: its labels join the fit",
+    )
     ap.add_argument("--ship", type=Path, default=None)
     ap.add_argument("--ship-only", action="store_true", help="copy OUT/NAME, train nothing")
     a = ap.parse_args(rest)
@@ -96,6 +102,7 @@ def main(argv: list[str] | None = None) -> None:
         view=a.view,
         features=a.features,
         network=a.network,
+        also=a.also,
     )
     if a.ship_only:
         if a.ship is None:

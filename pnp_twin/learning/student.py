@@ -278,6 +278,8 @@ class StudentArgs:
     deciding robot's workspace) or ``belt``."""
     features: str = FEATURES
     """The decision feature set (:data:`pnp_twin.policies.hdqn.features.SETS`)."""
+    also: list[str] = field(default_factory=list)
+    """Folders of earlier trainings (same feature set) whose labels join every fit here."""
     workers: int = 1
 
 
@@ -409,6 +411,29 @@ def meta_for(args: StudentArgs, agent: DQNAgent, base: Scenario, counters: dict[
     }
 
 
+def earlier_labels(folder: Path, features: str, n_robots: int) -> tuple[TeacherLabels, ...]:
+    """The training and held-out labels of every round an earlier training kept in
+    ``folder``; ``ValueError`` when there are none or their features are not ``features``."""
+    rounds = 0
+    while (folder / f"labels_{rounds}.npz").is_file():
+        rounds += 1
+    if not rounds or not (folder / f"held_{rounds - 1}.npz").is_file():
+        raise ValueError(f"also: {folder} holds no labels (labels_0.npz, held_0.npz, ...)")
+    train = TeacherLabels.concat(
+        [TeacherLabels.load(folder / f"labels_{r}.npz") for r in range(rounds)]
+    )
+    held = TeacherLabels.concat(
+        [TeacherLabels.load(folder / f"held_{r}.npz") for r in range(rounds)]
+    )
+    width = feature_size(features, len(RULE_ORDER), n_robots)
+    if train.extra.shape[1] != width:
+        raise ValueError(
+            f"also: {folder}'s labels have {train.extra.shape[1]} features; {features} with "
+            f"{n_robots} robots has {width}"
+        )
+    return train, held
+
+
 def train_student(args: StudentArgs) -> Path:
     """Label, fit, and for each DAgger round label the student's own runs and fit again;
     returns the checkpoint folder ``out/name``. Each round's labels are kept in
@@ -417,8 +442,9 @@ def train_student(args: StudentArgs) -> Path:
     folder = Path(args.out) / args.name
     folder.mkdir(parents=True, exist_ok=True)
     base = args.lines[0].load()
-    train_parts: list[TeacherLabels] = []
-    test_parts: list[TeacherLabels] = []
+    earlier = [earlier_labels(Path(f), args.features, base.robots.count) for f in args.also]
+    train_parts: list[TeacherLabels] = [tr for tr, _ in earlier]
+    test_parts: list[TeacherLabels] = [te for _, te in earlier]
     student: str | None = None
     t0 = time.perf_counter()
     rows = []

@@ -118,3 +118,18 @@ def test_shipped_student_follows_its_teacher(name: str) -> None:
     got = [numpy_q.greedy(view.obs[i : i + 1], view.extra[i : i + 1]) for i in range(len(view))]
     decided = [(g, int(w)) for g, w in zip(got, want, strict=True) if g is not None]
     assert len(decided) >= 0.9 * len(view) and all(g == w for g, w in decided)
+
+
+def test_an_earlier_trainings_labels_join_the_fit(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    common = {"out": str(tmp_path), "teacher": TEACHER, "runs": 2, "duration": 10.0, "epochs": 1}
+    first = train_student(StudentArgs(name="first", dagger=0, **common))  # type: ignore[arg-type]
+    arm = LineSpec("paper_baseline", ("robots.arm_speed=4",))
+    second = train_student(
+        StudentArgs(name="second", lines=[arm], dagger=0, also=[str(first)], **common)  # type: ignore[arg-type]
+    )
+    own = TeacherLabels.load(second / "labels_0.npz")
+    earlier = TeacherLabels.load(first / "labels_0.npz")
+    fitted = read_meta(second)["counters"]["step"]
+    assert fitted == len(own) + len(earlier) and len(earlier) > 0
+    with pytest.raises(ValueError, match="holds no labels"):
+        train_student(StudentArgs(name="third", also=[str(tmp_path / "none")], **common))  # type: ignore[arg-type]
