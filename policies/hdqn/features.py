@@ -100,15 +100,18 @@ class DecisionFeatures:
         """The part each rule would pick (rules here are deterministic; SIRO is not one)."""
         return [RULES[r](decision, self.rng) for r in self.rules]
 
-    def vector(self, decision: Decision, picks: list[int] | None = None) -> np.ndarray:
-        """The features of ``decision`` (float32, every entry >= 0)."""
+    def vector(
+        self, decision: Decision, picks: list[int] | None = None, out: np.ndarray | None = None
+    ) -> np.ndarray:
+        """The features of ``decision`` (float32, every entry >= 0); a compiled set writes
+        them into ``out`` when given (a float32 array of the set's length)."""
         robots, n = self.robots, len(self.robots)
         spec = decision.spec
         now = decision.time
         if picks is None:
             picks = self.picks(decision)
         if self.name != "student-v1":
-            return self._compiled(decision, picks)
+            return self._compiled(decision, picks, out)
         out = [0.0] * size(self.name, len(self.rules), n)
         out[decision.robot] = 1.0
         j = n
@@ -151,7 +154,7 @@ class DecisionFeatures:
         out[j + 2] = len(decision.parts) / 10.0
         return np.asarray(out, dtype=np.float32)
 
-    def _compiled(self, decision: Decision, picks: list[int]) -> np.ndarray:
+    def _compiled(self, decision: Decision, picks: list[int], out: np.ndarray | None) -> np.ndarray:
         from pnp_twin.policies.hdqn.features_compiled import fill, work_size
 
         spec = decision.spec
@@ -161,8 +164,8 @@ class DecisionFeatures:
         need = work_size(len(self.robots), cand.shape[1], belt.shape[1])
         if self._work.shape[0] < need:
             self._work = np.empty(2 * need)
-        # float32 out: each value rounds as astype would round it
-        out = np.empty(size(self.name, len(self.rules), len(self.robots)), np.float32)
+        if out is None:  # float32: each value rounds as astype would round it
+            out = np.empty(size(self.name, len(self.rules), len(self.robots)), np.float32)
         fill(out, decision.robot, decision.time, cand, np.array(picks, np.int64),
              self._table, line, belt, self._work)  # fmt: skip
         return out

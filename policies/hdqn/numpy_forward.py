@@ -183,17 +183,22 @@ class NumpyQ:
         """Q-values ``(n_actions,)`` of one observation."""
         return self.forward(self.inputs(obs, extra))[0]
 
+    def greedy_input(self, x: np.ndarray) -> int | None:
+        """:meth:`greedy` of a first-layer input the caller built (float32, every entry >= 0,
+        ending in a 1), by the compiled pass (``compiled=True``)."""
+        from pnp_twin.policies.hdqn.dense_compiled import greedy
+
+        action = greedy(x, *self._packed)
+        if action >= 0:
+            return int(action)
+        self.undecided += 1
+        return None
+
     def greedy(self, obs: np.ndarray, extra: np.ndarray | None = None) -> int | None:
         """Torch's greedy action for one observation, or ``None`` when the values are too
         close to rank without torch's own arithmetic."""
         if self.compiled:
-            from pnp_twin.policies.hdqn.dense_compiled import greedy
-
-            action = greedy(self.inputs(obs, extra), *self._packed)
-            if action >= 0:
-                return int(action)
-            self.undecided += 1
-            return None
+            return self.greedy_input(self.inputs(obs, extra))
         q, err = self.forward(self.inputs(obs, extra))
         best = int(q.argmax())
         q = q.astype(np.float64)

@@ -88,6 +88,7 @@ class HDQNPolicy(RuleChoosingPolicy):
         self._decisions = 0  # a fresh image per decision (claims change between them)
         self.numpy_forward = numpy_forward
         self._numpy: NumpyQ | None = None
+        self._input = np.ones(1, np.float32)  # a student's first-layer input (features, 1)
         self.torch_decisions = 0  # decisions torch ranked (near ties, or no numpy forward)
         # a student of the lookahead controller also sees decision features (its extras)
         features = meta.get("features")
@@ -118,6 +119,8 @@ class HDQNPolicy(RuleChoosingPolicy):
         if self.features is not None:
             self.features.reset(self.robots)
         self._numpy = self._numpy_q()
+        if self._numpy is not None:
+            self._input = np.ones(self._numpy.n_in, np.float32)
         n = int(self.meta["n_robots"])
         if len(robots) != n:
             raise CheckpointError(
@@ -189,7 +192,17 @@ class HDQNPolicy(RuleChoosingPolicy):
         if all(p == first for p in picks):
             self.last_rule = self.rules[0]
             return first
-        action = self._greedy(self.image(decision), features.vector(decision, picks)[None])
+        fast = self._numpy
+        if not self.sees_image and fast is not None and fast.compiled:
+            # the features straight into the first layer's input (its last entry stays 1)
+            x = self._input
+            features.vector(decision, picks, out=x[:-1])
+            action = fast.greedy_input(x)
+            if action is None:
+                self.torch_decisions += 1
+                action = int(self.agent.greedy(_NO_IMAGE, x[None, :-1].copy())[0])
+        else:
+            action = self._greedy(self.image(decision), features.vector(decision, picks)[None])
         self.last_rule = self.rules[action]
         return picks[action]
 
