@@ -112,8 +112,8 @@ class DecisionFeatures:
             picks = self.picks(decision)
         if self.name != "student-v1":
             return self._compiled(decision, picks, out)
-        out = [0.0] * size(self.name, len(self.rules), n)
-        out[decision.robot] = 1.0
+        vals = [0.0] * size(self.name, len(self.rules), n)
+        vals[decision.robot] = 1.0
         j = n
         b, v, w = spec.workspace[1], spec.belt_speed, spec.belt_width
         xs, ys, times = decision.xs, decision.ys, decision.times
@@ -135,24 +135,24 @@ class DecisionFeatures:
             back = times[k] + handling + math.hypot(bx - grip_x, by - ys[k]) / arm
             lost = [q for q, t in enumerate(left) if q != k and t < back]
             gone = sum(1 for q in lost if slack[q] <= 0.0)
-            out[j] = _clip(times[k], HORIZON)
-            out[j + 1] = _clip(left[k], HORIZON)
-            out[j + 2] = _clip(ys[k] / w, 1.0)
-            out[j + 3] = _clip(back, HORIZON)
-            out[j + 4] = min(len(lost), 5) / 5.0
-            out[j + 5] = _clip(slack[k], 2 * HORIZON) / 2.0
-            out[j + 6] = min(gone, 5) / 5.0
+            vals[j] = _clip(times[k], HORIZON)
+            vals[j + 1] = _clip(left[k], HORIZON)
+            vals[j + 2] = _clip(ys[k] / w, 1.0)
+            vals[j + 3] = _clip(back, HORIZON)
+            vals[j + 4] = min(len(lost), 5) / 5.0
+            vals[j + 5] = _clip(slack[k], 2 * HORIZON) / 2.0
+            vals[j + 6] = min(gone, 5) / 5.0
             j += PER_PICK
         for r in range(n):
-            out[j] = _clip(busy[r], HORIZON)
-            out[j + 1] = _clip(since[r], SINCE) / SINCE
-            out[j + 2] = robots[r].arm_speed / 4.0
-            out[j + 3] = min(load[r], 10) / 10.0
+            vals[j] = _clip(busy[r], HORIZON)
+            vals[j + 1] = _clip(since[r], SINCE) / SINCE
+            vals[j + 2] = robots[r].arm_speed / 4.0
+            vals[j + 3] = min(load[r], 10) / 10.0
             j += PER_ROBOT
-        out[j] = spec.belt_speed
-        out[j + 1] = self._rate(now) / 10.0
-        out[j + 2] = len(decision.parts) / 10.0
-        return np.asarray(out, dtype=np.float32)
+        vals[j] = spec.belt_speed
+        vals[j + 1] = self._rate(now) / 10.0
+        vals[j + 2] = len(decision.parts) / 10.0
+        return np.asarray(vals, dtype=np.float32)
 
     def _compiled(self, decision: Decision, picks: list[int], out: np.ndarray | None) -> np.ndarray:
         from pnp_twin.policies.hdqn.features_compiled import fill, work_size
