@@ -22,6 +22,10 @@ on seed 100 + round; each one's CPU per decision is its total CPU over its decis
 
 ``--cache DIR`` keeps each (line, policy, seed) result in a JSON file there, so a second
 student on the same line does not rerun the lookahead (the runs are deterministic).
+
+    python bench/student_share.py --table FILE.json [...]
+
+prints the README's table from ``--out`` files.
 """
 
 from __future__ import annotations
@@ -206,8 +210,36 @@ def _fmt(e: dict[str, Any]) -> str:
     return s
 
 
+def table(paths: list[Path]) -> str:
+    """The README's table from ``--out`` files: one row per line (its scenario and sets) and
+    student."""
+    lines = [
+        "| line | seeds | best rule, G % | lookahead | student | student's gain | share of the "
+        "lookahead's gain | CPU us/decision, student / lookahead (ratio) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for path in paths:
+        d = json.loads(path.read_text(encoding="utf-8"))
+        name = " ".join([d["scenario"], *d["sets"]])
+        b, la = d["best_rule"], d["lookahead"]
+        look = f"{la['gain']:+.2f} [{la['gain_ci_low']:+.2f}, {la['gain_ci_high']:+.2f}]"
+        for p in d["policies"]:
+            gain = f"{p['gain']:+.2f} [{p['gain_ci_low']:+.2f}, {p['gain_ci_high']:+.2f}]"
+            share = f"**{100 * p['share']:.0f} %** [{100 * p['share_ci_low']:.0f}, "
+            share += f"{100 * p['share_ci_high']:.0f}]"
+            cpu = f"{1000 * p['cpu_ms_per_decision']:.0f} / "
+            cpu += f"{1000 * la['cpu_ms_per_decision']:.0f} ({p['cpu_ratio']:.3f})"
+            student = p["policy"].removeprefix("hdqn:")
+            row = [name, str(len(d["seeds"])), f"{b['policy']} {b['gripping_rate']:.2f}", look]
+            lines.append("| " + " | ".join([*row, f"`{student}`", gain, share, cpu]) + " |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     argv = sys.argv[1:]
+    if argv[:1] == ["--table"]:
+        print(table([Path(p) for p in argv[1:]]))
+        return
     sets = tuple(argv[i + 1] for i, a in enumerate(argv) if a == "--set")
     rest = [a for i, a in enumerate(argv) if a != "--set" and (i == 0 or argv[i - 1] != "--set")]
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
