@@ -166,8 +166,8 @@ class DecisionFeatures:
             self._work = np.empty(2 * need)
         if out is None:  # float32: each value rounds as astype would round it
             out = np.empty(size(self.name, len(self.rules), len(self.robots)), np.float32)
-        fill(out, decision.robot, decision.time, cand, np.array(picks, np.int64),
-             self._table, line, belt, self._work)  # fmt: skip
+        picked = np.array(picks, np.int64)
+        fill(out, decision.robot, decision.time, cand, picked, self._table, line, belt, self._work)
         return out
 
     def _belt(self, now: float) -> np.ndarray:
