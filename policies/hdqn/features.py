@@ -83,15 +83,17 @@ class DecisionFeatures:
         self.rng = np.random.default_rng(0)
         self._table = np.zeros((0, 8))
         self._work = np.empty(0)  # the compiled pass's scratch, grown on demand
+        self._pass: Any = None  # features_compiled, imported at reset (numba) for sets past v1
 
     def reset(self, robots: list[RobotSpec], rate: float | None = None) -> None:
         """The run's robots and the feeder's nominal rate (None: measured from the belt)."""
         self.robots = list(robots)
         self.rate = rate
         if self.name != "student-v1":
-            from pnp_twin.policies.hdqn.features_compiled import robot_table
+            from pnp_twin.policies.hdqn import features_compiled
 
-            self._table = robot_table(self.robots)
+            self._pass = features_compiled
+            self._table = features_compiled.robot_table(self.robots)
 
     def attach(self, belt: Any) -> None:
         self.belt = belt
@@ -155,19 +157,20 @@ class DecisionFeatures:
         return np.asarray(vals, dtype=np.float32)
 
     def _compiled(self, decision: Decision, picks: list[int], out: np.ndarray | None) -> np.ndarray:
-        from pnp_twin.policies.hdqn.features_compiled import fill, work_size
-
+        fc = self._pass  # imported once, at reset, not per decision
         spec = decision.spec
         cand = np.array((decision.xs, decision.ys, decision.times), dtype=np.float64)
         line = np.array((spec.belt_speed, spec.belt_width, self._rate(decision.time)))
         belt = self._belt(decision.time)
-        need = work_size(len(self.robots), cand.shape[1], belt.shape[1])
+        need = fc.work_size(len(self.robots), cand.shape[1], belt.shape[1])
         if self._work.shape[0] < need:
             self._work = np.empty(2 * need)
         if out is None:  # float32: each value rounds as astype would round it
             out = np.empty(size(self.name, len(self.rules), len(self.robots)), np.float32)
         picked = np.array(picks, np.int64)
-        fill(out, decision.robot, decision.time, cand, picked, self._table, line, belt, self._work)
+        fc.fill(
+            out, decision.robot, decision.time, cand, picked, self._table, line, belt, self._work
+        )
         return out
 
     def _belt(self, now: float) -> np.ndarray:

@@ -131,9 +131,10 @@ class NumpyQ:
         self.compiled = compiled
         """Greedy actions by :mod:`.dense_compiled` (one call instead of numpy's products)."""
         if compiled:
-            from pnp_twin.policies.hdqn.dense_compiled import pack
+            from pnp_twin.policies.hdqn.dense_compiled import greedy, pack
 
             self._packed = pack(self.layers)
+            self._compiled_greedy = greedy  # looked up once, not per decision
 
     def inputs(self, obs: np.ndarray, extra: np.ndarray | None = None) -> np.ndarray:
         """The first layer's input (exact, >= 0): the image flattened, the extras (the
@@ -186,9 +187,7 @@ class NumpyQ:
     def greedy_input(self, x: np.ndarray) -> int | None:
         """:meth:`greedy` of a first-layer input the caller built (float32, every entry >= 0,
         ending in a 1), by the compiled pass (``compiled=True``)."""
-        from pnp_twin.policies.hdqn.dense_compiled import greedy
-
-        action = greedy(x, *self._packed)
+        action = self._compiled_greedy(x, *self._packed)
         if action >= 0:
             return int(action)
         self.undecided += 1
