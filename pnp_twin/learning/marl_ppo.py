@@ -161,10 +161,11 @@ class Features:
         return torch.cat([s, self.eye.expand(e, self.n, self.n)], dim=-1)
 
 
-def _actor(features: Features, hidden: int) -> ProbabilisticActor:
-    net = MultiAgentMLP(
-        n_agent_inputs=features.obs_size,
-        n_agent_outputs=features.k,
+def _mlp(features: Features, inputs: int, outputs: int, hidden: int) -> MultiAgentMLP:
+    """The per-agent network of the actor and the critic: shared weights, two tanh layers."""
+    return MultiAgentMLP(
+        n_agent_inputs=inputs,
+        n_agent_outputs=outputs,
         n_agents=features.n,
         centralized=False,
         share_params=True,
@@ -172,6 +173,10 @@ def _actor(features: Features, hidden: int) -> ProbabilisticActor:
         num_cells=hidden,
         activation_class=nn.Tanh,
     )
+
+
+def _actor(features: Features, hidden: int) -> ProbabilisticActor:
+    net = _mlp(features, features.obs_size, features.k, hidden)
     module = TensorDictModule(net, in_keys=[OBS], out_keys=[LOGITS])
     if features.masked:
         return ProbabilisticActor(
@@ -194,16 +199,7 @@ def _actor(features: Features, hidden: int) -> ProbabilisticActor:
 
 def _critic(features: Features, algo: str, hidden: int) -> TensorDictModule:
     central = algo == "mappo"
-    net = MultiAgentMLP(
-        n_agent_inputs=features.critic_size if central else features.obs_size,
-        n_agent_outputs=1,
-        n_agents=features.n,
-        centralized=False,
-        share_params=True,
-        depth=2,
-        num_cells=hidden,
-        activation_class=nn.Tanh,
-    )
+    net = _mlp(features, features.critic_size if central else features.obs_size, 1, hidden)
     return TensorDictModule(net, in_keys=[STATE if central else OBS], out_keys=[VALUE])
 
 
