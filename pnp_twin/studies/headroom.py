@@ -309,4 +309,3 @@ def answer(h: Headroom) -> str:
         f"the lookahead controller gets {_points(la)} ({sure}){worth}; the best static mix "
         f"{h.best_mix.policy} gets {_points(h.best_mix)}{extra}."
     )
-
