@@ -72,7 +72,8 @@ def test_fresh_compact_networks_too(shape, actions, extra, compiled):
 @pytest.mark.parametrize("compiled", [False, True])
 def test_a_students_features_only_network(compiled):
     """The student's shape: no image (0 channels), about 180 features, 128 x 128 ReLUs; the
-    compiled greedy action decides as often as numpy's, and the same."""
+    compiled greedy action decides wherever numpy's does (and more often: a ReLU surely
+    negative carries no error there), and the same."""
     torch.manual_seed(3)
     agent = QAgent(AgentConfig(network="student-wide"), (0, 1, 1), 5, 176)
     obs, extra = observations(agent, 1500, seed=4)
@@ -80,7 +81,10 @@ def test_a_students_features_only_network(compiled):
     plain, fast = NumpyQ(agent.q), NumpyQ(agent.q, compiled=True)
     for i in range(300):
         row = (obs[i : i + 1], extra[i : i + 1])  # type: ignore[index]
-        assert plain.greedy(*row) == fast.greedy(*row)
+        expected = plain.greedy(*row)
+        if expected is not None:
+            assert fast.greedy(*row) == expected
+    assert fast.undecided <= plain.undecided
 
 
 @pytest.mark.parametrize("compiled", [False, True])
