@@ -2,11 +2,12 @@
 
     python bench/student_share.py SCENARIO [--set path=value ...] --policy hdqn:NAME [...]
         [--seeds 20] [--lookahead lookahead:K=16,H=1,base=auto] [--workers 2]
-        [--cache DIR] [--json]
+        [--first-seed S] [--cache DIR] [--json]
 
-On one line and the held-out seeds 0..N-1 (600 s runs as the scenario says, the compiled
-engine, common random numbers), as ``pnp-twin headroom`` measures them: every rule, the best
-rule (the best mean on these seeds), the lookahead controller and each ``--policy``, with
+On one line and the held-out seeds 0..N-1 (``--first-seed S``: S..S+N-1; 600 s runs as the
+scenario says, the compiled engine, common random numbers), as ``pnp-twin headroom``
+measures them: every rule, the best rule (the best mean on these seeds), the lookahead
+controller and each ``--policy``, with
 the paired gain over the best rule and its 95 % t-interval. For each policy the **share of
 the lookahead's gain**, ``mean(G_policy - G_best) / mean(G_lookahead - G_best)`` over the
 seeds, with a 95 % interval from the paired bootstrap over seeds (10,000 resamples of the
@@ -42,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from pnp_twin.policies.registry import make_policy
+from pnp_twin.twin.errors import ScenarioError
 from pnp_twin.twin.loader import load_scenario, parse_sets
 from pnp_twin.twin.run import simulate
 from pnp_twin.twin.stats import t_interval
@@ -110,9 +112,11 @@ def measure(
     cache: Path | None,
     cpu_rounds: int = 3,
     cpu_duration: float = 120.0,
+    first_seed: int = 0,
 ) -> dict[str, Any]:
     specs = [*RULES, lookahead, *policies]
-    jobs = [(scenario, sets, spec, s) for spec in specs for s in range(seeds)]
+    seed_list = list(range(first_seed, first_seed + seeds))
+    jobs = [(scenario, sets, spec, s) for spec in specs for s in seed_list]
     results: dict[int, dict[str, Any]] = {}
     todo = []
     for i, job in enumerate(jobs):
@@ -167,7 +171,7 @@ def measure(
     return {
         "scenario": scenario,
         "sets": list(sets),
-        "seeds": list(range(seeds)),
+        "seeds": seed_list,
         "cpu": {"rounds": cpu_rounds, "duration": cpu_duration, "seeds": "100 + round"},
         "best_rule": entry(best),
         "lookahead": look,
@@ -246,6 +250,7 @@ def main() -> None:
     ap.add_argument("scenario")
     ap.add_argument("--policy", action="append", default=[])
     ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--first-seed", type=int, default=0, help="seeds FIRST..FIRST+N-1")
     ap.add_argument("--lookahead", default="lookahead:K=16,H=1,base=auto")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--cache", type=Path, default=None)
@@ -254,6 +259,12 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--out", type=Path, default=None, help="also write the JSON here")
     a = ap.parse_args(rest)
+    try:
+        warmup = load_scenario(a.scenario, parse_sets(sets) or None).warmup
+    except ScenarioError as e:
+        ap.error(str(e))
+    if a.cpu_rounds and a.cpu_duration <= warmup:
+        ap.error(f"--cpu-duration: {a.cpu_duration:g} s; must exceed the warmup ({warmup:g} s)")
     out = measure(
         a.scenario,
         sets,
@@ -264,6 +275,7 @@ def main() -> None:
         a.cache,
         a.cpu_rounds,
         a.cpu_duration,
+        a.first_seed,
     )
     if a.out is not None:
         a.out.parent.mkdir(parents=True, exist_ok=True)
@@ -271,7 +283,8 @@ def main() -> None:
     if a.json:
         print(json.dumps(out, indent=2))
         return
-    print(" ".join([a.scenario, *(f"--set {s}" for s in sets)]), f"seeds 0-{a.seeds - 1}")
+    last = a.first_seed + a.seeds - 1
+    print(" ".join([a.scenario, *(f"--set {s}" for s in sets)]), f"seeds {a.first_seed}-{last}")
     print("best rule", _fmt(out["best_rule"]))
     print("lookahead", _fmt(out["lookahead"]))
     for e in out["policies"]:
