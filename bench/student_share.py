@@ -7,11 +7,11 @@
 On one line and the held-out seeds 0..N-1 (``--first-seed S``: S..S+N-1; 600 s runs as the
 scenario says, the compiled engine, common random numbers), as ``pnp-twin headroom``
 measures them: every rule, the best rule (the best mean on these seeds), the lookahead
-controller and each ``--policy``, with
-the paired gain over the best rule and its 95 % t-interval. For each policy the **share of
-the lookahead's gain**, ``mean(G_policy - G_best) / mean(G_lookahead - G_best)`` over the
-seeds, with a 95 % interval from the paired bootstrap over seeds (10,000 resamples of the
-seeds, the ratio recomputed on each; percentile interval), and the CPU per decision: the
+controller and each ``--policy``, with the paired gain over the best rule and its 95 %
+t-interval. For each policy the **share of the lookahead's gain**,
+``mean(G_policy - G_best) / mean(G_lookahead - G_best)`` over the seeds, with a 95 % interval
+from the paired bootstrap over seeds (10,000 resamples of the seeds, the ratio recomputed on
+each; percentile interval), and the CPU per decision: the
 ``process_time`` spent in the policy's ``choose`` (observation, features, network, rule)
 divided by its decisions; the lookahead's is its own ``policy_stats``. The CPU ratio is the
 policy's CPU per decision over the lookahead's, measured in the same process pool.

@@ -6,9 +6,10 @@ pass: each output is a float32 sum of ``[x, 1] * [W | g|W|; b | g|b|]`` (in anot
 numpy's, which the bound allows: it holds for any order of the float32 sums), plus the input
 error carried through ``(1 + g)|W|`` summed apart and added, as numpy adds its second
 product. A ReLU whose sum lies below minus its bound is 0 in torch too, so its error is
-0 (a bound tighter than numpy's, as sound). A near tie still returns -1 and the caller asks
-torch, so an action returned is torch's. numpy's dispatch per product (tens of microseconds for a student's three layers and
-the bound) is what this saves. The layers travel packed in flat arrays (:func:`pack`): numba
+0 (a bound tighter than numpy's, as sound), and zero inputs are skipped. A near tie still
+returns -1 and the caller asks torch, so an action returned is torch's. numpy's dispatch
+per product (tens of microseconds for a student's three layers and the bound) is what this
+saves. The layers travel packed in flat arrays (:func:`pack`): numba
 checks a handful of array arguments per call in a microsecond, a tuple of arrays far slower.
 """
 
