@@ -199,8 +199,7 @@ class HDQNPolicy(RuleChoosingPolicy):
             features.vector(decision, picks, out=x[:-1])
             action = fast.greedy_input(x)
             if action is None:
-                self.torch_decisions += 1
-                action = int(self.agent.greedy(_NO_IMAGE, x[None, :-1].copy())[0])
+                action = self._torch_greedy(_NO_IMAGE, x[None, :-1].copy())
         else:
             action = self._greedy(self.image(decision), features.vector(decision, picks)[None])
         self.last_rule = self.rules[action]
@@ -208,10 +207,12 @@ class HDQNPolicy(RuleChoosingPolicy):
 
     def _greedy(self, obs: np.ndarray, extra: np.ndarray | None) -> int:
         action = None if self._numpy is None else self._numpy.greedy(obs, extra)
-        if action is None:
-            self.torch_decisions += 1
-            action = int(self.agent.greedy(obs, extra)[0])
-        return action
+        return self._torch_greedy(obs, extra) if action is None else action
+
+    def _torch_greedy(self, obs: np.ndarray, extra: np.ndarray | None) -> int:
+        """Torch's greedy action (a near tie the numpy pass left, or no numpy pass)."""
+        self.torch_decisions += 1
+        return int(self.agent.greedy(obs, extra)[0])
 
     def _numpy_q(self) -> NumpyQ | None:
         """The numpy forward of the agent's current weights, when it can stand in for torch
