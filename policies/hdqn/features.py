@@ -20,10 +20,14 @@ compiled pass by :mod:`.features_compiled`):
 - the line: belt speed and the feeder's nominal rate (the scenario's, handed over by
   ``bind_run``; the parts fed so far per second when no scenario is bound) and the number of
   candidates;
-- ``student-v2`` only: per rule's pick, when the robot would have placed a second part after
-  it and how many parts it could choose from then; the candidates one by one (place, across,
-  interception time), which of them each rule picks, the nearest unclaimed parts upstream,
-  and each robot's place along the line.
+- ``student-v2`` and ``student-v3``: per rule's pick, when the robot would have placed a
+  second part after it and how many parts it could choose from then; the candidates one by
+  one (place, across, interception time), which of them each rule picks, the nearest
+  unclaimed parts upstream, and each robot's place along the line;
+- ``student-v3`` only: per rule's pick, the line played on for a second over the parts
+  already on the belt, every robot following SPT (:mod:`.continuation`): the parts gripped
+  in it, by the robots downstream, by this robot after the pick, and how many fewer than the
+  best pick's.
 
 Every value is clipped to a small non-negative range (the numpy forward pass's bound needs
 inputs >= 0). :data:`SETS` names the feature sets; a checkpoint records its set in ``meta.json``
@@ -41,9 +45,10 @@ import numpy as np
 from pnp_twin.policies.rules import RULES
 from pnp_twin.twin.decision import Decision, RobotSpec
 
-SETS = ("student-v1", "student-v2")
+SETS = ("student-v1", "student-v2", "student-v3")
 """Known feature sets (``meta.json``'s ``features``); ``student-v2`` adds the deciding robot's
-second pick and is computed by the compiled pass of :mod:`.features_compiled`."""
+second pick and is computed by the compiled pass of :mod:`.features_compiled`; ``student-v3``
+adds, per rule's pick, a continuation over the parts already on the belt."""
 
 HORIZON = 2.0
 """Times (interception, time left, busy) are clipped to [0, HORIZON] s."""
@@ -59,9 +64,11 @@ def size(name: str, n_rules: int, n_robots: int) -> int:
     """Length of feature set ``name``'s vector (the robot one-hot included)."""
     check(name)
     if name != "student-v1":
-        from pnp_twin.policies.hdqn.features_compiled import size as compiled_size
+        from pnp_twin.policies.hdqn import continuation
+        from pnp_twin.policies.hdqn import features_compiled as fc
 
-        return compiled_size(n_rules, n_robots)
+        tail = continuation.size(n_rules) if name == "student-v3" else 0
+        return fc.size(n_rules, n_robots) + tail
     return n_robots + PER_PICK * n_rules + PER_ROBOT * n_robots + 3
 
 
@@ -84,15 +91,17 @@ class DecisionFeatures:
         self._table = np.zeros((0, 8))
         self._work = np.empty(0)  # the compiled pass's scratch, grown on demand
         self._pass: Any = None  # features_compiled, imported at reset (numba) for sets past v1
+        self._tail: Any = None  # continuation (student-v3's tail), imported with it
 
     def reset(self, robots: list[RobotSpec], rate: float | None = None) -> None:
         """The run's robots and the feeder's nominal rate (None: measured from the belt)."""
         self.robots = list(robots)
         self.rate = rate
         if self.name != "student-v1":
-            from pnp_twin.policies.hdqn import features_compiled
+            from pnp_twin.policies.hdqn import continuation, features_compiled
 
             self._pass = features_compiled
+            self._tail = continuation
             self._table = features_compiled.robot_table(self.robots)
 
     def attach(self, belt: Any) -> None:
@@ -162,15 +171,18 @@ class DecisionFeatures:
         cand = np.array((decision.xs, decision.ys, decision.times), dtype=np.float64)
         line = np.array((spec.belt_speed, spec.belt_width, self._rate(decision.time)))
         belt = self._belt(decision.time)
-        need = fc.work_size(len(self.robots), cand.shape[1], belt.shape[1])
+        n, nb, nr = len(self.robots), belt.shape[1], len(self.rules)
+        need = max(fc.work_size(n, cand.shape[1], nb), self._tail.work_size(n, nb, nr))
         if self._work.shape[0] < need:
             self._work = np.empty(2 * need)
         if out is None:  # float32: each value rounds as astype would round it
-            out = np.empty(size(self.name, len(self.rules), len(self.robots)), np.float32)
+            out = np.empty(size(self.name, nr, n), np.float32)
         picked = np.array(picks, np.int64)
-        fc.fill(
-            out, decision.robot, decision.time, cand, picked, self._table, line, belt, self._work
-        )
+        base = fc.size(nr, n)
+        args = (decision.robot, decision.time, cand, picked, self._table, line, belt, self._work)
+        fc.fill(out[:base], *args)
+        if self.name == "student-v3":
+            self._tail.fill(out[base:], *args)
         return out
 
     def _belt(self, now: float) -> np.ndarray:

@@ -99,8 +99,8 @@ def student(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -
 
 
 def student_wide(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -> QNetwork:
-    """The student of the ``student-v2`` features (about 180 inputs): two FC layers of 128
-    ReLUs, still a numpy forward pass per decision."""
+    """The student of the ``student-v2`` or ``-v3`` features (about 180-200 inputs): two FC
+    layers of 128 ReLUs, still a numpy forward pass per decision."""
     return QNetwork(obs_shape, n_actions, n_extra, [], (128, 128))
 
 

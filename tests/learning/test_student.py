@@ -134,3 +134,37 @@ def test_an_earlier_trainings_labels_join_the_fit(tmp_path) -> None:  # type: ig
     assert fitted == len(own) + len(earlier) and len(earlier) > 0
     with pytest.raises(ValueError, match="holds no labels"):
         train_student(StudentArgs(name="third", also=[str(tmp_path / "none")], **common))  # type: ignore[arg-type]
+
+
+def test_feature_comparison_scores_the_held_out_rows(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """bench/student_features.py: the rules' rows are the held-out labels' own agreement and
+    regret; a folder without labels is one usage line, exit 2."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    common = {"out": str(tmp_path), "teacher": TEACHER, "runs": 2, "duration": 10.0, "epochs": 1}
+    folder = train_student(StudentArgs(name="f", dagger=0, **common))  # type: ignore[arg-type]
+    script = str(Path(__file__).parents[2] / "bench" / "student_features.py")
+    done = subprocess.run(
+        [sys.executable, script, str(folder), "--epochs", "1"], capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    rows = {ln[:28].strip(): ln[28:].split() for ln in done.stdout.splitlines()[2:]}
+    assert list(rows) == [
+        "SPT alone",
+        "SD alone",
+        "continuation alone",
+        "network, student-v2",
+        "network, student-v3",
+    ]
+    held = TeacherLabels.load(folder / "held_0.npz")
+    best = np.where(held.mask, held.values, -np.inf).max(axis=1)
+    spt = RULE_ORDER.index("SPT")
+    assert float(rows["SPT alone"][0]) == pytest.approx(held.mask[:, spt].mean(), abs=5e-4)
+    regret = (best - held.values[:, spt]).mean()
+    assert float(rows["SPT alone"][1]) == pytest.approx(regret, abs=5e-5)
+    for agree, loss in rows.values():
+        assert 0.0 <= float(agree) <= 1.0 and float(loss) >= 0.0
+    bad = subprocess.run([sys.executable, script, str(tmp_path / "none")], capture_output=True)
+    assert bad.returncode == 2 and b"no labels_0.npz" in bad.stderr.splitlines()[-1]

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from pnp_twin.policies.hdqn import continuation as cont
 from pnp_twin.policies.hdqn import features_compiled as fc
 from pnp_twin.policies.hdqn.features import DecisionFeatures, size
 from pnp_twin.policies.rules import RULES
@@ -106,3 +107,63 @@ def test_second_pick_follows_the_geometry() -> None:
     assert fc._second(0, 9.0, me, v, xs, ys, none, none, 4.0) == (4.0, 0)
     # still reachable but finished after the horizon: counted, capped at the horizon
     assert fc._second(0, 6.0, me, v, xs, ys, none, none, 4.0) == (4.0, 1)
+
+
+def _line(busy1: float, claimed: bool = False) -> tuple[int, int, int]:
+    """Robot 0 on [0, 1] m takes part A (x 0.5); robot 1 on [1, 2] m, free in ``busy1`` s;
+    part B (x 0.3) is upstream in robot 0's workspace, part C (x 1.2) in robot 1's; the
+    belt runs at 0.1 m/s, arms at 2 m/s, grip and release take 0.05 s each."""
+    robots = np.array(
+        [[0.0, 1.0, 0.5, 1.0, 2.0, 0.0, 0.05, 0.05], [1.0, 2.0, 1.5, 1.0, 2.0, 0.0, 0.05, 0.05]]
+    )
+    v = 0.1
+    _, first = _first_cycle(v)
+    px, py = np.array([1.2, 0.5, 0.3]), np.full(3, 0.5)  # in the order they were fed
+    taken = np.array([0.0, 0.0, 1.0 if claimed else 0.0])
+    free = np.array([0.0, busy1])
+    return cont._continue(0, 1, first, robots, v, px, py, taken, free)
+
+
+def _first_cycle(v: float) -> tuple[float, float]:
+    """Robot 0 taking A: its interception time, and when it is back at its bin."""
+    t_a = intercept_time(0.0, -0.5, v, 2.0, 0.0)
+    gx = 0.5 + v * t_a
+    return t_a, t_a + 0.1 + move_time(math.hypot(0.5 - gx, 0.5), 2.0, 0.0)
+
+
+def test_continuation_counts_the_grips_the_geometry_allows() -> None:
+    v = 0.1
+    _, back = _first_cycle(v)
+    xb = 0.3 + v * back  # B when robot 0 is back at its bin
+    second_grip = back + intercept_time(xb - 0.5, -0.5, v, 2.0, 0.0)
+    assert second_grip < cont.HORIZON  # so robot 0 grips B within the horizon
+    # A (the decision), C by robot 1 at once, B by robot 0 after A
+    assert _line(0.0) == (3, 1, 1)
+    # robot 1 busy past the horizon: C is not gripped in it
+    assert _line(2.0) == (2, 0, 1)
+    # B claimed by another robot: nobody takes it
+    assert _line(0.0, claimed=True) == (2, 1, 0)
+
+
+def test_v3_is_v2_plus_the_continuations_and_the_same_on_both_engines() -> None:
+    rows = {}
+    for engine in ("fast", "simpy"):
+        p = Probe()
+        p.v1 = DecisionFeatures("student-v3", R)  # the probe's first set becomes v3
+        line = with_overrides(load_scenario("paper_baseline"), {"duration": 30.0, "warmup": 0.0})
+        simulate(line, p, seed=5, engine=engine)
+        rows[engine] = p.rows
+    base = size("student-v2", len(R), N)
+    assert size("student-v3", len(R), N) == base + cont.size(len(R))
+    spread = 0
+    for (v3, v2, picks, _), (w3, _, _, _) in zip(rows["fast"], rows["simpy"], strict=True):
+        np.testing.assert_array_equal(v3, w3)
+        np.testing.assert_array_equal(v3[:base], v2)
+        tail = v3[base:].reshape(len(R), cont.PER_ROLL)
+        assert (tail >= 0.0).all() and (tail <= 1.0).all()
+        # rules picking the same part get the same values; the best pick's shortfall is 0
+        for r, k in enumerate(picks):
+            assert (tail[r] == tail[picks.index(k)]).all()
+        assert tail[:, 3].min() == 0.0
+        spread += tail[:, 3].max() > 0.0
+    assert spread > 0  # the continuations tell some picks apart
