@@ -25,7 +25,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from pnp_twin.learning.student import RULE_ORDER, StudentArgs, TeacherLabels, agreement, fit
+from pnp_twin.learning.student import (
+    RULE_ORDER,
+    StudentArgs,
+    TeacherLabels,
+    agreement,
+    choice_scores,
+    fit,
+)
 from pnp_twin.policies.hdqn import continuation
 from pnp_twin.policies.hdqn.features import size
 
@@ -38,10 +45,8 @@ def columns(labels: TeacherLabels, cols: int) -> TeacherLabels:
     return TeacherLabels(obs, labels.extra[:, :cols], labels.values, labels.mask, labels.line)
 
 
-def score(labels: TeacherLabels, act: np.ndarray) -> tuple[float, float]:
-    rows = np.arange(len(labels))
-    best = np.where(labels.mask, labels.values, -np.inf).max(axis=1)
-    return float(labels.mask[rows, act].mean()), float((best - labels.values[rows, act]).mean())
+def show(choice: str, scores: dict[str, float]) -> None:
+    print(f"{choice:<28} {scores['agreement']:>9.3f} {scores['regret']:>8.4f}")
 
 
 def main() -> None:
@@ -64,19 +69,16 @@ def main() -> None:
     print(f"{len(train)} training rows, {len(held)} held-out rows")
     print(f"{'choice':<28} {'agreement':>9} {'regret':>8}")
     for rule in ("SPT", "SD"):
-        agree, regret = score(held, np.full(len(held), RULE_ORDER.index(rule)))
-        print(f"{rule + ' alone':<28} {agree:>9.3f} {regret:>8.4f}")
+        show(f"{rule} alone", choice_scores(held, np.full(len(held), RULE_ORDER.index(rule))))
     tail = held.extra[:, v2:].reshape(len(held), n_rules, continuation.PER_ROLL)
     short = tail[:, :, 3]  # shortfall against the best pick's grips
     spt = RULE_ORDER.index("SPT")
     act = np.where(short[:, spt] == 0.0, spt, short.argmin(axis=1))
-    agree, regret = score(held, act)
-    print(f"{'continuation alone':<28} {agree:>9.3f} {regret:>8.4f}")
+    show("continuation alone", choice_scores(held, act))
     for name, cols in (("student-v2", v2), ("student-v3", v3)):
         args = StudentArgs(name=name, seed=a.seed, epochs=a.epochs, features=name)
         agent = fit(columns(train, cols), args, N_ROBOTS)
-        got = agreement(agent, columns(held, cols))
-        print(f"{'network, ' + name:<28} {got['agreement']:>9.3f} {got['regret']:>8.4f}")
+        show(f"network, {name}", agreement(agent, columns(held, cols)))
 
 
 if __name__ == "__main__":

@@ -352,11 +352,15 @@ def agreement(agent: DQNAgent, labels: TeacherLabels) -> dict[str, float]:
         return {"rows": 0, "agreement": float("nan"), "regret": float("nan")}
     with torch.no_grad():
         q = agent.q(torch.as_tensor(labels.obs), torch.as_tensor(labels.extra)).numpy()
-    act = q.argmax(axis=1)
+    return {"rows": len(labels), **choice_scores(labels, q.argmax(axis=1))}
+
+
+def choice_scores(labels: TeacherLabels, act: np.ndarray) -> dict[str, float]:
+    """On labelled rows, choices ``act`` (a rule index per row): the share that picks the
+    teacher's part (``agreement``), and the mean value lost against it (``regret``)."""
     rows = np.arange(len(labels))
     best = np.where(labels.mask, labels.values, -np.inf).max(axis=1)
     return {
-        "rows": len(labels),
         "agreement": float(labels.mask[rows, act].mean()),
         "regret": float((best - labels.values[rows, act]).mean()),
     }

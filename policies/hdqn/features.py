@@ -91,7 +91,7 @@ class DecisionFeatures:
         self._table = np.zeros((0, 8))
         self._work = np.empty(0)  # the compiled pass's scratch, grown on demand
         self._pass: Any = None  # features_compiled, imported at reset (numba) for sets past v1
-        self._tail: Any = None  # continuation (student-v3's tail), imported with it
+        self._tail: Any = None  # continuation, student-v3's tail (None: a set without it)
 
     def reset(self, robots: list[RobotSpec], rate: float | None = None) -> None:
         """The run's robots and the feeder's nominal rate (None: measured from the belt)."""
@@ -101,7 +101,7 @@ class DecisionFeatures:
             from pnp_twin.policies.hdqn import continuation, features_compiled
 
             self._pass = features_compiled
-            self._tail = continuation
+            self._tail = continuation if self.name == "student-v3" else None
             self._table = features_compiled.robot_table(self.robots)
 
     def attach(self, belt: Any) -> None:
@@ -172,7 +172,9 @@ class DecisionFeatures:
         line = np.array((spec.belt_speed, spec.belt_width, self._rate(decision.time)))
         belt = self._belt(decision.time)
         n, nb, nr = len(self.robots), belt.shape[1], len(self.rules)
-        need = max(fc.work_size(n, cand.shape[1], nb), self._tail.work_size(n, nb, nr))
+        need = fc.work_size(n, cand.shape[1], nb)
+        if self._tail is not None:
+            need = max(need, self._tail.work_size(n, nb, nr))
         if self._work.shape[0] < need:
             self._work = np.empty(2 * need)
         if out is None:  # float32: each value rounds as astype would round it
@@ -181,7 +183,7 @@ class DecisionFeatures:
         base = fc.size(nr, n)
         args = (decision.robot, decision.time, cand, picked, self._table, line, belt, self._work)
         fc.fill(out[:base], *args)
-        if self.name == "student-v3":
+        if self._tail is not None:
             self._tail.fill(out[base:], *args)
         return out
 
