@@ -4,15 +4,17 @@ on its held-out runs.
     python bench/student_features.py FOLDER [FOLDER ...] [--epochs 40] [--seed 1]
 
 FOLDER is a ``bench/train_student.py`` output whose labels were recorded with feature set
-``student-v3`` (``labels_0.npz``, ``held_0.npz``; round 0 only, where the teacher acted).
+``student-v4`` (``labels_0.npz``, ``held_0.npz``; round 0 only, where the teacher acted).
 On the held-out runs' rows it prints, for each way of choosing, the share of rows where the
 choice picks the teacher's part (agreement) and the mean value it loses against the
 teacher's pick, in parts gripped per future (regret; lower is better):
 
 - the rules SPT and SD alone;
-- the known-parts continuation alone (the pick with the most grips in it, SPT's on ties);
-- the student's network fitted on ``student-v2``'s columns (the first ones of ``student-v3``)
-  and on all of ``student-v3``'s, with the same labels, epochs and seed.
+- each known-parts continuation alone (the pick with the most grips in it, SPT's on ties):
+  the short one (a second) and the long one (until the parts have left the line);
+- the student's network fitted on ``student-v2``'s columns (the first ones of ``student-v4``),
+  on ``student-v3``'s (with the short continuation) and on all of ``student-v4``'s, with the
+  same labels, epochs and seed.
 
 The fits are those of :func:`pnp_twin.learning.student.fit` (one thread).
 """
@@ -33,7 +35,6 @@ from pnp_twin.learning.student import (
     choice_scores,
     fit,
 )
-from pnp_twin.policies.hdqn import continuation
 from pnp_twin.policies.hdqn.features import size
 
 N_ROBOTS = 4
@@ -63,19 +64,23 @@ def main() -> None:
     train = TeacherLabels.concat([TeacherLabels.load(f / "labels_0.npz") for f in a.folders])
     held = TeacherLabels.concat([TeacherLabels.load(f / "held_0.npz") for f in a.folders])
     n_rules = len(RULE_ORDER)
-    v2, v3 = size("student-v2", n_rules, N_ROBOTS), size("student-v3", n_rules, N_ROBOTS)
-    if train.extra.shape[1] != v3:
-        ap.error(f"the labels have {train.extra.shape[1]} features; student-v3 has {v3}")
+    widths = {n: size(n, n_rules, N_ROBOTS) for n in ("student-v2", "student-v3", "student-v4")}
+    if train.extra.shape[1] != widths["student-v4"]:
+        ap.error(
+            f"the labels have {train.extra.shape[1]} features; student-v4 has "
+            f"{widths['student-v4']} (train them with --features student-v4)"
+        )
     print(f"{len(train)} training rows, {len(held)} held-out rows")
     print(f"{'choice':<28} {'agreement':>9} {'regret':>8}")
     for rule in ("SPT", "SD"):
         show(f"{rule} alone", choice_scores(held, np.full(len(held), RULE_ORDER.index(rule))))
-    tail = held.extra[:, v2:].reshape(len(held), n_rules, continuation.PER_ROLL)
-    short = tail[:, :, 3]  # shortfall against the best pick's grips
+    tails = held.extra[:, widths["student-v2"] :].reshape(len(held), 2, n_rules, -1)
     spt = RULE_ORDER.index("SPT")
-    act = np.where(short[:, spt] == 0.0, spt, short.argmin(axis=1))
-    show("continuation alone", choice_scores(held, act))
-    for name, cols in (("student-v2", v2), ("student-v3", v3)):
+    for t, name in enumerate(("short", "long")):
+        shortfall = tails[:, t, :, 3]  # against the best pick's grips
+        act = np.where(shortfall[:, spt] == 0.0, spt, shortfall.argmin(axis=1))
+        show(f"{name} continuation alone", choice_scores(held, act))
+    for name, cols in widths.items():
         args = StudentArgs(name=name, seed=a.seed, epochs=a.epochs, features=name)
         agent = fit(columns(train, cols), args, N_ROBOTS)
         show(f"network, {name}", agreement(agent, columns(held, cols)))

@@ -54,9 +54,11 @@ log = logging.getLogger(__name__)
 
 RULE_ORDER: tuple[str, ...] = TRIED
 """The student's actions: the lookahead's candidate rules, in its order."""
-FEATURES = "student-v3"
-"""The feature set new students see (``student-v3``: ``student-v2`` and a continuation over the
-parts on the belt per rule's pick; ``student-v1`` lacks the second-pick features)."""
+FEATURES = "student-v4"
+"""The feature set new students see (``student-v4``: ``student-v2`` and, per rule's pick, two
+continuations over the parts on the belt, a second's and one that counts their fate as the
+teacher does; ``student-v3`` has only the first; ``student-v1`` lacks the second-pick
+features)."""
 CHANNELS = 2
 EPISODE_SEED_BASE = 3_000_000
 """Label runs use seeds 3,000,000 + 1,000 line + i (disjoint from evaluation seeds 0..N-1,

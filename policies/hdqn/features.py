@@ -24,10 +24,12 @@ compiled pass by :mod:`.features_compiled`):
   second part after it and how many parts it could choose from then; the candidates one by
   one (place, across, interception time), which of them each rule picks, the nearest
   unclaimed parts upstream, and each robot's place along the line;
-- ``student-v3`` only: per rule's pick, the line played on for a second over the parts
-  already on the belt, every robot following SPT (:mod:`.continuation`): the parts gripped
-  in it, by the robots downstream, by this robot after the pick, and how many fewer than the
-  best pick's.
+- ``student-v3`` and ``-v4``: per rule's pick, the line played on for a second over the
+  parts already on the belt, every robot following SPT (:mod:`.continuation`): the parts
+  gripped in it, by the robots downstream, by this robot after the pick, and how many fewer
+  than the best pick's;
+- ``student-v4`` only: the same four from the line played on until every part on the belt
+  has passed the last workspace, counting each part's fate as the teacher does.
 
 Every value is clipped to a small non-negative range (the numpy forward pass's bound needs
 inputs >= 0). :data:`SETS` names the feature sets; a checkpoint records its set in ``meta.json``
@@ -45,10 +47,13 @@ import numpy as np
 from pnp_twin.policies.rules import RULES
 from pnp_twin.twin.decision import Decision, RobotSpec
 
-SETS = ("student-v1", "student-v2", "student-v3")
+SETS = ("student-v1", "student-v2", "student-v3", "student-v4")
 """Known feature sets (``meta.json``'s ``features``); ``student-v2`` adds the deciding robot's
 second pick and is computed by the compiled pass of :mod:`.features_compiled`; ``student-v3``
-adds, per rule's pick, a continuation over the parts already on the belt."""
+adds, per rule's pick, a second's continuation over the parts already on the belt;
+``student-v4`` a continuation until those parts have left the line."""
+TAILS = {"student-v3": False, "student-v4": True}
+"""The sets with a continuation tail, and whether it has the long continuation."""
 
 HORIZON = 2.0
 """Times (interception, time left, busy) are clipped to [0, HORIZON] s."""
@@ -67,7 +72,7 @@ def size(name: str, n_rules: int, n_robots: int) -> int:
         from pnp_twin.policies.hdqn import continuation
         from pnp_twin.policies.hdqn import features_compiled as fc
 
-        tail = continuation.size(n_rules) if name == "student-v3" else 0
+        tail = continuation.size(n_rules, TAILS[name]) if name in TAILS else 0
         return fc.size(n_rules, n_robots) + tail
     return n_robots + PER_PICK * n_rules + PER_ROBOT * n_robots + 3
 
@@ -91,7 +96,7 @@ class DecisionFeatures:
         self._table = np.zeros((0, 8))
         self._work = np.empty(0)  # the compiled pass's scratch, grown on demand
         self._pass: Any = None  # features_compiled, imported at reset (numba) for sets past v1
-        self._tail: Any = None  # continuation, student-v3's tail (None: a set without it)
+        self._tail: Any = None  # continuation, the v3 / v4 tail (None: a set without it)
 
     def reset(self, robots: list[RobotSpec], rate: float | None = None) -> None:
         """The run's robots and the feeder's nominal rate (None: measured from the belt)."""
@@ -101,7 +106,7 @@ class DecisionFeatures:
             from pnp_twin.policies.hdqn import continuation, features_compiled
 
             self._pass = features_compiled
-            self._tail = continuation if self.name == "student-v3" else None
+            self._tail = continuation if self.name in TAILS else None
             self._table = features_compiled.robot_table(self.robots)
 
     def attach(self, belt: Any) -> None:
@@ -184,7 +189,7 @@ class DecisionFeatures:
         args = (decision.robot, decision.time, cand, picked, self._table, line, belt, self._work)
         fc.fill(out[:base], *args)
         if self._tail is not None:
-            self._tail.fill(out[base:], *args)
+            self._tail.fill(out[base:], *args, TAILS[self.name])
         return out
 
     def _belt(self, now: float) -> np.ndarray:

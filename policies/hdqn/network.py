@@ -99,7 +99,7 @@ def student(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -
 
 
 def student_wide(obs_shape: tuple[int, int, int], n_actions: int, n_extra: int = 0) -> QNetwork:
-    """The student of the ``student-v2`` or ``-v3`` features (about 180-200 inputs): two FC
+    """The student of the ``student-v2`` to ``-v4`` features (about 180-220 inputs): two FC
     layers of 128 ReLUs, still a numpy forward pass per decision."""
     return QNetwork(obs_shape, n_actions, n_extra, [], (128, 128))
 

@@ -154,9 +154,11 @@ def test_feature_comparison_scores_the_held_out_rows(tmp_path) -> None:  # type:
     assert list(rows) == [
         "SPT alone",
         "SD alone",
-        "continuation alone",
+        "short continuation alone",
+        "long continuation alone",
         "network, student-v2",
         "network, student-v3",
+        "network, student-v4",
     ]
     held = TeacherLabels.load(folder / "held_0.npz")
     best = np.where(held.mask, held.values, -np.inf).max(axis=1)

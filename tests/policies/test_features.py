@@ -1,6 +1,7 @@
 """Decision features of the lookahead's students: ``student-v2`` (compiled) keeps every value of
 ``student-v1`` (the Python reference), is the same on both engines, stays in the numpy forward
-pass's non-negative range, and its second-pick values are what the geometry says."""
+pass's non-negative range, and its second-pick values are what the geometry says; ``student-v3``
+and ``-v4`` add continuations whose grip counts follow from the geometry."""
 
 from __future__ import annotations
 
@@ -23,27 +24,27 @@ N = 4
 
 
 class Probe:
-    """Follows SD and records both feature sets and the rules' picks at every decision."""
+    """Follows SD and records feature sets (``student-v1`` and ``-v2`` unless named) and the
+    rules' picks at every decision: rows of (vector per set..., picks, candidates)."""
 
     name = "probe"
 
-    def __init__(self) -> None:
-        self.v1 = DecisionFeatures("student-v1", R)
-        self.v2 = DecisionFeatures("student-v2", R)
-        self.rows: list[tuple[np.ndarray, np.ndarray, list[int], int]] = []
+    def __init__(self, *names: str) -> None:
+        self.sets = [DecisionFeatures(n, R) for n in names or ("student-v1", "student-v2")]
+        self.rows: list[tuple] = []  # type: ignore[type-arg]
         self.last_rule = "SD"
 
     def reset(self, robots, rng) -> None:  # type: ignore[no-untyped-def]
-        self.v1.reset(robots, 10.0)
-        self.v2.reset(robots, 10.0)
+        for f in self.sets:
+            f.reset(robots, 10.0)
 
     def attach(self, belt) -> None:  # type: ignore[no-untyped-def]
-        self.v1.attach(belt)
-        self.v2.attach(belt)
+        for f in self.sets:
+            f.attach(belt)
 
     def choose(self, decision: Decision) -> int:
-        picks = self.v1.picks(decision)
-        row = (self.v1.vector(decision, picks), self.v2.vector(decision, picks))
+        picks = self.sets[0].picks(decision)
+        row = tuple(f.vector(decision, picks) for f in self.sets)
         self.rows.append((*row, picks, len(decision)))
         return RULES["SD"](decision, np.random.default_rng(0))
 
@@ -109,10 +110,11 @@ def test_second_pick_follows_the_geometry() -> None:
     assert fc._second(0, 6.0, me, v, xs, ys, none, none, 4.0) == (4.0, 1)
 
 
-def _line(busy1: float, claimed: bool = False) -> tuple[int, int, int]:
+def _line(busy1: float, claimed: bool = False, long: bool = False) -> tuple[int, int, int]:
     """Robot 0 on [0, 1] m takes part A (x 0.5); robot 1 on [1, 2] m, free in ``busy1`` s;
     part B (x 0.3) is upstream in robot 0's workspace, part C (x 1.2) in robot 1's; the
-    belt runs at 0.1 m/s, arms at 2 m/s, grip and release take 0.05 s each."""
+    belt runs at 0.1 m/s, arms at 2 m/s, grip and release take 0.05 s each. The short
+    continuation, or with ``long`` the long one (until every part has passed x = 2 m)."""
     robots = np.array(
         [[0.0, 1.0, 0.5, 1.0, 2.0, 0.0, 0.05, 0.05], [1.0, 2.0, 1.5, 1.0, 2.0, 0.0, 0.05, 0.05]]
     )
@@ -121,7 +123,11 @@ def _line(busy1: float, claimed: bool = False) -> tuple[int, int, int]:
     px, py = np.array([1.2, 0.5, 0.3]), np.full(3, 0.5)  # in the order they were fed
     taken = np.array([0.0, 0.0, 1.0 if claimed else 0.0])
     free = np.array([0.0, busy1])
-    return cont._continue(0, 1, first, robots, v, px, py, taken, free)
+    if long:
+        limits = (2.0 / v, math.inf, cont.LONG_STEPS)
+    else:
+        limits = (cont.HORIZON, cont.HORIZON, cont.STEPS)
+    return cont._continue(0, 1, first, robots, v, px, py, taken, free, *limits)
 
 
 def _first_cycle(v: float) -> tuple[float, float]:
@@ -145,25 +151,40 @@ def test_continuation_counts_the_grips_the_geometry_allows() -> None:
     assert _line(0.0, claimed=True) == (2, 1, 0)
 
 
-def test_v3_is_v2_plus_the_continuations_and_the_same_on_both_engines() -> None:
+def test_the_long_continuation_counts_each_parts_fate() -> None:
+    # robot 1 busy for 2 s: C (8 s from the line's end) is gripped after the short
+    # continuation's second, and the long one counts it, as the teacher does
+    assert _line(2.0, long=True) == (3, 1, 1)
+    assert _line(0.0, long=True) == (3, 1, 1)
+    # robot 1 busy until C has passed x = 2 m: C is lost in both
+    assert _line(9.0, long=True) == (2, 0, 1) == _line(9.0)
+
+
+def test_v4_is_v3_plus_the_long_continuation_and_the_same_on_both_engines() -> None:
     rows = {}
     for engine in ("fast", "simpy"):
-        p = Probe()
-        p.v1 = DecisionFeatures("student-v3", R)  # the probe's first set becomes v3
+        p = Probe("student-v4", "student-v3", "student-v2")
         line = with_overrides(load_scenario("paper_baseline"), {"duration": 30.0, "warmup": 0.0})
         simulate(line, p, seed=5, engine=engine)
         rows[engine] = p.rows
-    base = size("student-v2", len(R), N)
-    assert size("student-v3", len(R), N) == base + cont.size(len(R))
-    spread = 0
-    for (v3, v2, picks, _), (w3, _, _, _) in zip(rows["fast"], rows["simpy"], strict=True):
+    base, nr = size("student-v2", len(R), N), len(R)
+    assert size("student-v3", nr, N) == base + cont.size(nr)
+    assert size("student-v4", nr, N) == base + cont.size(nr, long=True) == base + 8 * nr
+    spread = {"short": 0, "long": 0}
+    for (v4, v3, v2, picks, _), (w4, w3, _, _, _) in zip(rows["fast"], rows["simpy"], strict=True):
+        np.testing.assert_array_equal(v4, w4)
         np.testing.assert_array_equal(v3, w3)
+        np.testing.assert_array_equal(v4[: len(v3)], v3)
         np.testing.assert_array_equal(v3[:base], v2)
-        tail = v3[base:].reshape(len(R), cont.PER_ROLL)
-        assert (tail >= 0.0).all() and (tail <= 1.0).all()
-        # rules picking the same part get the same values; the best pick's shortfall is 0
-        for r, k in enumerate(picks):
-            assert (tail[r] == tail[picks.index(k)]).all()
-        assert tail[:, 3].min() == 0.0
-        spread += tail[:, 3].max() > 0.0
-    assert spread > 0  # the continuations tell some picks apart
+        tails = v4[base:].reshape(2, nr, cont.PER_ROLL)
+        assert (tails >= 0.0).all() and (tails <= 1.0).all()
+        for name, tail in zip(spread, tails, strict=True):
+            # rules picking the same part get the same values; the best pick's shortfall is 0
+            for r, k in enumerate(picks):
+                assert (tail[r] == tail[picks.index(k)]).all()
+            assert tail[:, 3].min() == 0.0
+            spread[name] += tail[:, 3].max() > 0.0
+        # the long one plays the same picks on past the second: it counts no fewer grips
+        short, long = tails[0, :, 0] * cont.SCALE_SHORT[0], tails[1, :, 0] * cont.SCALE_LONG[0]
+        assert (long >= short - 1e-4).all()
+    assert spread["short"] > 0 and spread["long"] > 0  # they tell some picks apart
