@@ -34,7 +34,6 @@ from pnp_twin.policies.hdqn.features_compiled import (
     PLACE,
     WS_A,
     WS_B,
-    _robot_state,
 )
 from pnp_twin.twin.fast.jit import compiled
 from pnp_twin.twin.fast.mathlib import intercept_time, move_time, py_hypot
@@ -63,7 +62,7 @@ def size(n_rules: int, long: bool = False) -> int:
 
 def work_size(n_robots: int, n_on_belt: int, n_rules: int) -> int:
     """Length of the scratch array :func:`fill` needs."""
-    return 4 * n_robots + 2 * n_rules + 3 * n_on_belt
+    return n_robots + 2 * n_rules + 3 * n_on_belt
 
 
 @compiled()
@@ -141,19 +140,19 @@ def fill(
     robots: np.ndarray,
     line: np.ndarray,
     belt: np.ndarray,
+    busy: np.ndarray,
     work: np.ndarray,
     long: bool,
 ) -> None:
     """The short continuation's values into ``out`` (rule by rule), then with ``long`` the
     long one's (:func:`size` values in all). Arguments as :func:`features_compiled.fill`'s;
-    ``work``: :func:`work_size` scratch."""
+    ``busy``: each robot's seconds until free, as that pass estimated them (it leaves them
+    in its scratch); ``work``: :func:`work_size` scratch, apart from ``busy``."""
     n, nr, m = robots.shape[0], picks.shape[0], belt.shape[1]
-    busy, since, load = work[:n], work[n : 2 * n], work[2 * n : 3 * n]
-    free, totals = work[3 * n : 4 * n], work[4 * n : 4 * n + 2 * nr]
-    o = 4 * n + 2 * nr
+    free, totals = work[:n], work[n : n + 2 * nr]
+    o = n + 2 * nr
     px, held, taken = work[o : o + m], work[o + m : o + 2 * m], work[o + 2 * m : o + 3 * m]
     v = line[0]
-    _robot_state(now, robots, v, belt, busy, since, load)
     for i in range(m):
         px[i] = v * (now - belt[0, i])
         held[i] = 1.0 if belt[2, i] >= 0.0 else 0.0

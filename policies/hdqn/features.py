@@ -178,8 +178,8 @@ class DecisionFeatures:
         belt = self._belt(decision.time)
         n, nb, nr = len(self.robots), belt.shape[1], len(self.rules)
         need = fc.work_size(n, cand.shape[1], nb)
-        if self._tail is not None:
-            need = max(need, self._tail.work_size(n, nb, nr))
+        if self._tail is not None:  # the pass's busy times stay in work[:n] for the tail
+            need = max(need, n + self._tail.work_size(n, nb, nr))
         if self._work.shape[0] < need:
             self._work = np.empty(2 * need)
         if out is None:  # float32: each value rounds as astype would round it
@@ -189,7 +189,8 @@ class DecisionFeatures:
         args = (decision.robot, decision.time, cand, picked, self._table, line, belt, self._work)
         fc.fill(out[:base], *args)
         if self._tail is not None:
-            self._tail.fill(out[base:], *args, TAILS[self.name])
+            busy, work = self._work[:n], self._work[n:]
+            self._tail.fill(out[base:], *args[:-1], busy, work, TAILS[self.name])
         return out
 
     def _belt(self, now: float) -> np.ndarray:

@@ -155,7 +155,8 @@ def fill(
     """The ``student-v2`` vector of one decision into ``out``. ``cand`` rows: the candidates'
     x, y and interception times; ``picks``: each rule's pick; ``line``: belt speed, belt
     width, the feeder's rate; ``belt``: the on-belt parts (see _robot_state); ``work``:
-    scratch of :func:`work_size` (the compiled engine's functions allocate nothing)."""
+    scratch of :func:`work_size` (the compiled engine's functions allocate nothing). It
+    leaves each robot's seconds until free in ``work[:n]`` (the continuations read them)."""
     out[:] = 0.0
     n, m, nb = robots.shape[0], cand.shape[1], belt.shape[1]
     v, width = line[0], line[1]
