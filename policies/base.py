@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pnp_twin.policies.rules import RULES
+from pnp_twin.policies.rules import NAMED_RULES as RULES
 from pnp_twin.twin.decision import Decision, RobotSpec
 
 

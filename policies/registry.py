@@ -6,7 +6,7 @@ import importlib
 from collections.abc import Callable, Sequence
 
 from pnp_twin.policies.base import RuleMix
-from pnp_twin.policies.rules import RULES
+from pnp_twin.policies.rules import NAMED_RULES as RULES
 from pnp_twin.twin.decision import Policy
 from pnp_twin.twin.errors import UserError
 

@@ -52,15 +52,24 @@ class Belt:
         self.fed: list[float] = []
         self.y: list[float] = []
         self.kind: list[str] | None = None
+        self.kind_code: list[int] = []  # each part's kind code (index into feeder.kinds)
         self.holder: list[int] = []
         self.left_at: list[float] = []  # grip time of a claimed part, inf while on the belt
         self.arrived = 0  # parts the feeder has put on the belt so far
 
-    def load(self, fed: np.ndarray, y: np.ndarray, kind: list[str] | None = None) -> None:
-        """Announce the feeder's stream (each part is put on the belt at its fed time)."""
+    def load(
+        self,
+        fed: np.ndarray,
+        y: np.ndarray,
+        kind: list[str] | None = None,
+        codes: np.ndarray | None = None,
+    ) -> None:
+        """Announce the feeder's stream (each part is put on the belt at its fed time);
+        ``codes``: each part's kind code (all 0 when not given)."""
         self.fed = fed.tolist()
         self.y = y.tolist()
         self.kind = kind
+        self.kind_code = [0] * len(self.fed) if codes is None else codes.tolist()
         self.holder = [FREE] * len(self.fed)
         self.left_at = [math.inf] * len(self.fed)
         self.arrived = 0

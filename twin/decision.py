@@ -28,6 +28,31 @@ class RobotSpec:
     place_time: float  # s
     belt_speed: float  # m/s
     belt_width: float  # m
+    side: str = "upper"  # upper, lower or over (scenario robots.side)
+    reach: float = 0.0  # m from ``mount``; 0: no limit
+    mount: tuple[float, float] = (0.0, 0.0)  # the base, where the reach is measured from
+    picks: tuple[bool, ...] = ()  # per kind code: whether it picks that kind; (): every kind
+    pick_times: tuple[float, ...] = ()  # per kind code, s; (): pick_time for every kind
+    place_times: tuple[float, ...] = ()  # per kind code, s; (): place_time for every kind
+    values: tuple[float, ...] = ()  # per kind code, the value of a part; (): 1 each
+
+    def pick_of(self, kind: int) -> float:
+        """Grip time of a part of kind code ``kind``."""
+        return self.pick_times[kind] if self.pick_times else self.pick_time
+
+    def place_of(self, kind: int) -> float:
+        """Release time of a part of kind code ``kind``."""
+        return self.place_times[kind] if self.place_times else self.place_time
+
+    def value_of(self, kind: int) -> float:
+        """Value of a part of kind code ``kind``."""
+        return self.values[kind] if self.values else 1.0
+
+    @property
+    def bin_side(self) -> float:
+        """+1 when the bin is on the upper side of the belt's centre line, -1 below it: SD
+        prefers parts nearer the bin's edge, LD the far edge."""
+        return 1.0 if self.bin[1] >= self.belt_width / 2.0 else -1.0
 
 
 class Decision:
@@ -35,11 +60,12 @@ class Decision:
 
     Candidates are listed furthest downstream first (the order they entered the
     workspace). ``xs``/``ys`` are the parts' positions now, ``times`` the interception
-    times from the tool position ``tool``. A decision is read only: the answer is the index
-    ``choose`` returns.
+    times from the tool position ``tool``, ``kinds`` their kind codes (indices into the
+    scenario's feeder.kinds; all 0 on a line of one kind). A decision is read only: the
+    answer is the index ``choose`` returns.
     """
 
-    __slots__ = ("robot", "spec", "time", "tool", "parts", "xs", "ys", "times")
+    __slots__ = ("robot", "spec", "time", "tool", "parts", "xs", "ys", "times", "kinds")
 
     def __init__(
         self,
@@ -50,6 +76,7 @@ class Decision:
         xs: list[float],
         ys: list[float],
         times: list[float],
+        kinds: list[int] | None = None,
     ) -> None:
         self.robot = spec.index
         self.spec = spec
@@ -59,6 +86,7 @@ class Decision:
         self.xs = xs
         self.ys = ys
         self.times = times
+        self.kinds = [0] * len(parts) if kinds is None else kinds
 
     def __len__(self) -> int:
         return len(self.parts)

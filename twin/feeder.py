@@ -17,6 +17,7 @@ import numpy as np
 import simpy
 from simpy.events import URGENT
 
+from pnp_twin.twin.plan import FIRST_ROBOT
 from pnp_twin.twin.scenario import FeederConfig, Scenario
 from pnp_twin.twin.trace import TraceError, read_trace, resolve, trace_paths  # noqa: F401  (TraceError kept importable)
 
@@ -39,12 +40,16 @@ class Feeder:
         arrivals_rng: np.random.Generator,
         lateral_rng: np.random.Generator,
         source_dir: str | None = None,
+        kinds_rng: np.random.Generator | None = None,
     ) -> None:
+        """``kinds_rng``: the stream the parts' kinds are drawn from (read only when
+        ``config.kinds`` is given and no trace names them)."""
         self.config = config
         self.width = belt_width
         self.arrivals_rng = arrivals_rng
         self.lateral_rng = lateral_rng
         self.source_dir = source_dir
+        self.kinds_rng = kinds_rng
 
     def stream(self, duration: float) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
         """(fed_at, y, kind or None) of every part fed in [0, duration), time-ordered."""
@@ -55,16 +60,28 @@ class Feeder:
             times = np.arange(0.0, duration, 1.0 / c.rate)
         else:
             times = self._gaps(duration)
-        return times, self._lateral(len(times)), None
+        return times, self._lateral(len(times)), self._kinds(len(times))
 
     @classmethod
     def seeded(cls, scenario: Scenario, seed: int) -> Feeder:
         """The feeder of a run of ``scenario`` with master ``seed`` (its first two child
-        streams, as :class:`twin.line.Line` spawns them)."""
-        arrivals, lateral = (
-            np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2)
-        )
-        return cls(scenario.feeder, scenario.belt.width, arrivals, lateral, scenario.source_dir)
+        streams and the kinds' stream, as :class:`twin.plan.LinePlan` spawns them)."""
+        kinds_stream = FIRST_ROBOT + scenario.robots.count  # LinePlan.kinds_stream
+        seeds = np.random.SeedSequence(seed).spawn(kinds_stream + 1)
+        arrivals, lateral, kinds = (np.random.default_rng(seeds[k]) for k in (0, 1, -1))
+        width, where = scenario.belt.width, scenario.source_dir
+        return cls(scenario.feeder, width, arrivals, lateral, where, kinds)
+
+    def _kinds(self, n: int) -> list[str] | None:
+        """Each part's kind, drawn by share (None on a line of one kind)."""
+        kinds = self.config.kinds
+        if not kinds:
+            return None
+        assert self.kinds_rng is not None, "a line with feeder.kinds needs the kinds' stream"
+        edges = np.cumsum([k.share for k in kinds])
+        codes = np.searchsorted(edges / edges[-1], self.kinds_rng.random(n), side="right")
+        names = [k.name for k in kinds]
+        return [names[c] for c in np.minimum(codes, len(names) - 1).tolist()]
 
     def feeding(self, env: simpy.Environment, belt: Belt) -> Generator[simpy.Event, Any, None]:
         """The feeder's process: put each part of the belt's stream on it at its arrival.

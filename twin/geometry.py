@@ -34,12 +34,32 @@ def workspaces(
 
 
 def bin_position(
-    workspace: tuple[float, float], belt_width: float, offset: Sequence[float]
+    workspace: tuple[float, float],
+    belt_width: float,
+    offset: Sequence[float],
+    side: str = "upper",
 ) -> tuple[float, float]:
-    """A robot's place target: ``offset`` (dx, dy) from (workspace centre, upper belt edge)."""
+    """A robot's place target: ``offset`` (dx, dy) from (workspace centre, upper belt edge),
+    mirrored to the lower edge (y = -dy) for a robot on the lower side; an "over" robot's
+    bin is at the offset as given (from the upper edge)."""
     a, b = workspace
     dx, dy = offset
+    if side == "lower":
+        return ((a + b) / 2.0 + dx, -dy)
     return ((a + b) / 2.0 + dx, belt_width + dy)
+
+
+def mount_position(
+    workspace: tuple[float, float], belt_width: float, side: str, offset: float
+) -> tuple[float, float]:
+    """Where a robot's base stands (its reach is measured from here): at the workspace
+    centre, ``offset`` beyond the belt edge of its side, or above the belt's centre line."""
+    xc = (workspace[0] + workspace[1]) / 2.0
+    if side == "over":
+        return (xc, belt_width / 2.0)
+    if side == "lower":
+        return (xc, -offset)
+    return (xc, belt_width + offset)
 
 
 def exit_time(fed_at: Times, end: float, speed: float) -> Times:

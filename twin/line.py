@@ -23,6 +23,7 @@ from pnp_twin.twin.plan import (
     LATERAL,
     POLICY,
     LinePlan,
+    overlap,
     robot_specs,
 )
 from pnp_twin.twin.records import Recorder
@@ -63,10 +64,13 @@ class Line:
         self.last_end = plan.last_end
         self.belt = Belt(b.length, b.width, b.speed, b.grid, end=self.last_end)
         arrivals, lateral = streams[ARRIVALS], streams[LATERAL]
-        self.feeder = Feeder(scenario.feeder, b.width, arrivals, lateral, scenario.source_dir)
+        self.feeder = Feeder(
+            scenario.feeder, b.width, arrivals, lateral, scenario.source_dir,
+            streams[plan.kinds_stream],
+        )  # fmt: skip
         if parts is None:
             parts = self.feeder.stream(self.duration)
-        self.belt.load(*parts)
+        self.belt.load(*parts, plan.kind_codes(parts[2], len(parts[0])))
         self.recorder = Recorder(len(self.belt))
         # the feeder first: at a shared instant it puts parts on the belt before robots look
         self.env.process(self.feeder.feeding(self.env, self.belt))
@@ -87,10 +91,17 @@ class Line:
             if rp.breaks:
                 rng = streams[FIRST_ROBOT + spec.index]
                 failures = Failures(rp.mtbf, rp.mttr, rp.failures, rng)
-            bin_ = Bin(self.env, spec.bin, plan.capacity, plan.change_time)
-            robot = Robot(self.env, spec, self.belt, bin_, self.recorder, failures, rp)
+            bins = [
+                Bin(self.env, spec.bin, plan.capacity, plan.change_time) for _ in plan.kinds
+            ]  # one bin (chute) per kind, at the robot's bin position
+            robot = Robot(self.env, spec, self.belt, bins[0], self.recorder, failures, rp, bins)
             self.robots.append(robot)
         self.gateway.robots = self.robots
+        if plan.rivals:  # facing robots: each knows the others whose x-range meets its own
+            for robot in self.robots:
+                robot.rivals = [
+                    o for o in self.robots if o is not robot and overlap(o.spec, robot.spec)
+                ]
         for robot in self.robots:
             robot.start(self.gateway)
         self.end_at = plan.end_at

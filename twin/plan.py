@@ -8,9 +8,11 @@ belt tick, the end of the run, the seed split, the rule and scheme codes) are th
 doubles in both, written once here.
 
 The seed is split into independent child streams, in this order: feeder arrivals, lateral
-positions, the policy, then one per robot (breakdowns); so the part stream does not depend
-on the policy. :meth:`LinePlan.seeds` gives the children; a stream's generator is built only
-where a run uses it (:meth:`LinePlan.stream`).
+positions, the policy, one per robot (breakdowns), then the parts' kinds and the robots'
+priority order (ties between facing robots); so the part stream does not depend on the
+policy, and a line of one kind on one side draws exactly what it drew before kinds existed.
+:meth:`LinePlan.seeds` gives the children; a stream's generator is built only where a run
+uses it (:meth:`LinePlan.stream`).
 """
 
 from __future__ import annotations
@@ -22,10 +24,10 @@ import numpy as np
 
 from pnp_twin.twin.decision import RobotSpec
 from pnp_twin.twin.gateway import SCHEMES
-from pnp_twin.twin.geometry import bin_position, intercept_quad
+from pnp_twin.twin.geometry import bin_position, intercept_quad, mount_position
 from pnp_twin.twin.scenario import Scenario
 
-RULES = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT")
+RULES = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT", "VAL")
 """The built-in dispatching rules; a rule's code is its index here (both engines)."""
 # SCHEMES (imported above, from the gateway that runs them): a scheme's code is its index
 DRAIN_SLACK = 30.0  # s after the last part passed the last workspace, for the last places
@@ -33,7 +35,7 @@ ARRIVALS, LATERAL, POLICY, FIRST_ROBOT = range(4)
 """The seed split: child stream k of the master seed (robot r's is ``FIRST_ROBOT + r``)."""
 __all__ = [
     "ARRIVALS", "DRAIN_SLACK", "FIRST_ROBOT", "LATERAL", "POLICY", "RULES", "SCHEMES",
-    "LinePlan", "RobotPlan", "reach_margin", "robot_specs",
+    "LinePlan", "RobotPlan", "overlap", "reach_margin", "robot_specs", "rivals",
 ]  # fmt: skip
 
 
@@ -41,23 +43,46 @@ def robot_specs(scenario: Scenario) -> list[RobotSpec]:
     """Each robot's resolved parameters (shared defaults with per-robot overrides)."""
     out = []
     belt = scenario.belt
+    kinds = scenario.feeder.kinds
+    names = [k.name for k in kinds]
     for i, (a, b) in enumerate(scenario.robots.layout()):
         p = lambda name, i=i: scenario.robot_param(i + 1, name)  # noqa: E731
+        side = p("side")
+        pick, place = float(p("pick_time")), float(p("place_time"))
+        mine = set(p("kinds"))
         out.append(
             RobotSpec(
                 index=i,
                 count=scenario.robots.count,
                 workspace=(a, b),
-                bin=bin_position((a, b), belt.width, p("bin_offset")),
+                bin=bin_position((a, b), belt.width, p("bin_offset"), side),
                 arm_speed=float(p("arm_speed")),
                 acceleration=float(p("acceleration")),
-                pick_time=float(p("pick_time")),
-                place_time=float(p("place_time")),
+                pick_time=pick,
+                place_time=place,
                 belt_speed=belt.speed,
                 belt_width=belt.width,
+                side=side,
+                reach=float(p("reach")),
+                mount=mount_position((a, b), belt.width, side, float(p("base_offset"))),
+                picks=tuple(not mine or n in mine for n in names),
+                pick_times=tuple(pick if k.pick_time is None else k.pick_time for k in kinds),
+                place_times=tuple(place if k.place_time is None else k.place_time for k in kinds),
+                values=tuple(k.value for k in kinds),
             )
         )
     return out
+
+
+def overlap(a: RobotSpec, b: RobotSpec) -> bool:
+    """Whether two robots' x-ranges overlap (more than touch)."""
+    return a.workspace[0] < b.workspace[1] and b.workspace[0] < a.workspace[1]
+
+
+def rivals(specs: list[RobotSpec]) -> bool:
+    """Whether two robots' x-ranges overlap (facing robots): then a part several idle robots
+    could take is offered only to the one that intercepts it soonest (see twin.robot)."""
+    return any(overlap(a, b) for i, a in enumerate(specs) for b in specs[i + 1 :])
 
 
 def reach_margin(spec: RobotSpec) -> float:
@@ -81,6 +106,7 @@ class RobotPlan:
     mtbf: float  # s; 0: no breakdowns
     mttr: float  # s
     failures: str  # "exponential" or "fixed" (read when mtbf > 0)
+    priority: int = 0  # rank among facing robots on an exact tie (lower first)
 
     @property
     def breaks(self) -> bool:
@@ -102,6 +128,11 @@ class LinePlan:
     scheme: int  # code of the termination scheme (index into SCHEMES)
     capacity: int  # parts per box, 0: unlimited
     change_time: float  # s per box change
+    kinds: tuple[str, ...] = ("",)  # the kinds of part, by code ("" alone: one kind)
+    shares: tuple[float, ...] = (1.0,)  # each kind's share of the flow
+    values: tuple[float, ...] = (1.0,)  # each kind's value per part
+    targeted: tuple[bool, ...] = (True,)  # each kind: some robot picks it
+    rivals: bool = False  # some robots' x-ranges overlap (facing robots compete)
 
     @classmethod
     def of(
@@ -112,7 +143,13 @@ class LinePlan:
         duration = scenario.duration if duration is None else duration
         b = scenario.belt
         robots = []
-        for spec in robot_specs(scenario):
+        specs = robot_specs(scenario)
+        facing = rivals(specs)
+        order = [0] * len(specs)
+        if facing:  # ties between facing robots: a random order, not the robots' numbers
+            seeds = np.random.SeedSequence(seed).spawn(FIRST_ROBOT + len(specs) + 2)
+            order = np.random.default_rng(seeds[-1]).permutation(len(specs)).tolist()
+        for spec in specs:
             a, end = spec.workspace
             i = spec.index + 1
             robots.append(
@@ -124,9 +161,11 @@ class LinePlan:
                     mtbf=scenario.robot_param(i, "mtbf"),
                     mttr=scenario.robot_param(i, "mttr"),
                     failures=scenario.robots.failure_distribution,
+                    priority=int(order[spec.index]),
                 )
             )
-        last_end = robots[-1].spec.workspace[1]
+        last_end = max(r.spec.workspace[1] for r in robots)
+        kinds = scenario.feeder.kinds
         change = scenario.bins.change_time
         return cls(
             scenario=scenario,
@@ -139,15 +178,45 @@ class LinePlan:
             scheme=SCHEMES.index(scenario.termination),
             capacity=scenario.bins.capacity,
             change_time=change,
+            kinds=scenario.kind_names(),
+            shares=tuple(k.share for k in kinds) or (1.0,),
+            values=tuple(k.value for k in kinds) or (1.0,),
+            targeted=tuple(any(s.picks[c] for s in specs) for c in range(len(kinds))) or (True,),
+            rivals=facing,
         )
 
     @property
     def specs(self) -> list[RobotSpec]:
         return [r.spec for r in self.robots]
 
+    def kind_codes(self, kinds: list[str] | None, n: int) -> np.ndarray:
+        """Each part's kind code (its index in :attr:`kinds`) from the stream's kind names;
+        all 0 on a line of one kind (a trace's kind column is then free text)."""
+        if kinds is None or len(self.kinds) == 1:
+            return np.zeros(n, dtype=np.int64)
+        code = {name: c for c, name in enumerate(self.kinds)}
+        return np.fromiter((code[k] for k in kinds), np.int64, n)
+
+    def new_shape(self) -> str | None:
+        """The first setting beyond the paper's line shape (one kind, one side, no reach
+        limit), or None: what the engines support but some tools (vector envs, rollouts)
+        refuse."""
+        sc = self.scenario
+        if sc.feeder.kinds:
+            return "feeder.kinds"
+        for name, plain in (("side", "upper"), ("reach", 0.0), ("kinds", ())):
+            if any(sc.robot_param(i, name) != plain for i in range(1, len(self.robots) + 1)):
+                return f"robots.{name}"
+        return None
+
+    @property
+    def kinds_stream(self) -> int:
+        """The child stream the parts' kinds are drawn from (after the robots')."""
+        return FIRST_ROBOT + len(self.robots)
+
     def seeds(self) -> list[np.random.SeedSequence]:
         """The child seeds of the split (see the module docstring)."""
-        return np.random.SeedSequence(self.seed).spawn(FIRST_ROBOT + len(self.robots))
+        return np.random.SeedSequence(self.seed).spawn(FIRST_ROBOT + len(self.robots) + 2)
 
     @staticmethod
     def stream(seeds: list[np.random.SeedSequence], k: int) -> np.random.Generator:

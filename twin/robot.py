@@ -45,11 +45,20 @@ class Failures:
 
 
 class Robot:
-    """One robot with workspace [a, b] over the full belt width and its own bin.
+    """One robot with workspace [a, b] over the full belt width and its own bin (one per
+    kind of part: a chute each, at the same position).
 
     The process :meth:`working` repeats: become free (the gateway may hold it), check for
     a due breakdown, look at the candidates, then either pick one (approach and grip, move
     to the bin and place) or take a NooP.
+
+    A candidate is an unclaimed part of a kind the robot picks whose interception point lies
+    in [a, b] and, with a reach, within ``reach`` of the robot's base. Where robots face each
+    other (their x-ranges overlap), a part that several *idle* robots (not approaching, not
+    carrying, not down) could take is a candidate only of the one that intercepts it
+    soonest, an exact tie going to the robot first in the run's random priority order: so
+    who takes a contested part does not depend on how the robots are numbered or in which
+    order robots free at the same instant decide.
     """
 
     def __init__(
@@ -61,14 +70,17 @@ class Robot:
         recorder: Recorder,
         failures: Failures | None = None,
         plan: RobotPlan | None = None,
+        bins: list[Bin] | None = None,
     ) -> None:
         """``plan``: the robot's derived constants as the line's plan computed them (computed
-        here from ``spec`` when not given)."""
+        here from ``spec`` when not given); ``bins``: one per kind code (``[bin_]`` when not
+        given)."""
         self.env = env
         self.spec = spec
         self.index = spec.index
         self.belt = belt
         self.bin = bin_
+        self.bins = bins or [bin_]
         self.recorder = recorder
         self.a, self.b = spec.workspace
         if plan is None:
@@ -82,7 +94,12 @@ class Robot:
                 "",
             )
         self.base = plan.base
+        self.priority = plan.priority
         self.tool = self.base
+        self.busy = False  # approaching, gripping or carrying a part (not idle)
+        self.rivals: list[Robot] = []  # robots whose x-range overlaps this one's (the line)
+        # candidates pass more tests than the x-range (kinds, reach, rivals): the full loop
+        self.filtered = spec.reach > 0 or not all(spec.picks)
         self.x_lo = plan.x_lo  # parts upstream of it cannot be met inside [a, b]
         self._quad = plan.quad
         self.failures = failures
@@ -114,7 +131,10 @@ class Robot:
         """The candidates now: unclaimed parts whose interception point lies in [a, b]."""
         return Decision(self.spec, self.env.now, self.tool, *self._candidates(self.env.now))
 
-    def _candidates(self, now: float) -> tuple[list[int], list[float], list[float], list[float]]:
+    def _candidates(self, now: float) -> tuple[list[Any], ...]:
+        """(parts, xs, ys, times[, kinds]): the kinds only where the full loop ran."""
+        if self.filtered or self.rivals:
+            return self._filtered_candidates(now)
         belt = self.belt
         v = belt.speed
         fed, ys_all, holder = belt.fed, belt.y, belt.holder
@@ -145,14 +165,74 @@ class Robot:
                 times.append(t)
         return parts, xs, ys, times
 
+    def intercept(self, x: float, y: float) -> float:
+        """Interception time of a part now at (x, y) from the tool, with this arm."""
+        dx, dy = x - self.tool[0], y - self.tool[1]
+        spec = self.spec
+        if spec.acceleration > 0.0:
+            return intercept_time(dx, dy, spec.belt_speed, spec.arm_speed, spec.acceleration)
+        return intercept_now(dx, dy, spec.belt_speed, self._quad)
+
+    def can_take(self, kind: int, x: float, y: float, t: float) -> bool:
+        """Whether a part of ``kind``, now at (x, y) and intercepted after ``t`` s, may be
+        this robot's: a kind it picks, met inside [a, b] and within its reach."""
+        spec = self.spec
+        if spec.picks and not spec.picks[kind]:
+            return False
+        xi = x + spec.belt_speed * t
+        if not self.a <= xi <= self.b:
+            return False
+        if spec.reach > 0.0:
+            mx, my = spec.mount
+            return (xi - mx) * (xi - mx) + (y - my) * (y - my) <= spec.reach * spec.reach
+        return True
+
+    def _yields_to(self, kind: int, x: float, y: float, t: float) -> bool:
+        """Whether an idle rival would intercept this part sooner (or as soon, and comes
+        first in the priority order): then it is the rival's, not a candidate here."""
+        for other in self.rivals:
+            if other.busy or other.down:
+                continue
+            t_other = other.intercept(x, y)
+            if not other.can_take(kind, x, y, t_other):
+                continue
+            if t_other < t or (t_other == t and other.priority < self.priority):
+                return True
+        return False
+
+    def _filtered_candidates(self, now: float) -> tuple[list[Any], ...]:
+        """:meth:`_candidates` with every test (kinds, reach, rivals): the readable loop."""
+        belt = self.belt
+        v = belt.speed
+        parts: list[int] = []
+        xs: list[float] = []
+        ys: list[float] = []
+        times: list[float] = []
+        kinds: list[int] = []
+        for i in belt.span(now, self.x_lo, self.b):
+            if belt.holder[i] != FREE:
+                continue
+            x, y, kind = v * now - v * belt.fed[i], belt.y[i], belt.kind_code[i]
+            t = self.intercept(x, y)
+            if not self.can_take(kind, x, y, t):
+                continue
+            if self.rivals and self._yields_to(kind, x, y, t):
+                continue
+            parts.append(i)
+            xs.append(x)
+            ys.append(y)
+            times.append(t)
+            kinds.append(kind)
+        return parts, xs, ys, times, kinds
+
     # -- the cycle -------------------------------------------------------------------------
     def working(self) -> Generator[simpy.Event, Any, None]:
         env, rec, spec, gw = self.env, self.recorder, self.spec, self.gateway
         assert gw is not None
-        belt, bin_, me = self.belt, self.bin, self.index
+        belt, me = self.belt, self.index
         v = belt.speed
-        v_r, acc, pick = spec.arm_speed, spec.acceleration, spec.pick_time
-        bx, by = bin_.position
+        v_r, acc = spec.arm_speed, spec.acceleration
+        bx, by = self.bin.position  # every kind's chute is at the robot's bin position
         timeout = env.timeout
         decides_at_once = gw.decides_at_once
         while True:
@@ -171,16 +251,18 @@ class Robot:
                 continue
             d = Decision(spec, t0, self.tool, *found)
             k, rule = gw.choose(self, d)
-            part, t = d.parts[k], d.times[k]
+            part, t, kind = d.parts[k], d.times[k], d.kinds[k]
             tx, ty = d.xs[k] + v * t, d.ys[k]
             belt.claim(part, me, t0 + t)
             self.claimed = part
+            self.busy = True
             self.approach_until = t0 + t
             try:
-                yield timeout(t + pick)
+                yield timeout(t + spec.pick_of(kind))
             except simpy.Interrupt:
                 belt.release(part)
                 self.claimed = -1
+                self.busy = False
                 rec.span(me, "interrupted", t0, env.now)
                 self.tool = position_along(self.tool, (tx, ty), env.now - t0, v_r, acc)
                 continue
@@ -188,12 +270,13 @@ class Robot:
             rec.picked(part, me, rule, t0, t0 + t)
             dist = math.hypot(bx - tx, by - ty)
             arrive = env.now + (dist / v_r if acc <= 0.0 else move_time(dist, v_r, acc))
-            blocked, done = bin_.place(arrive, spec.place_time)
+            blocked, done = self.bins[kind].place(arrive, spec.place_of(kind))
             rec.placed(part, done, blocked)
             if blocked > 0.0:
                 rec.span(me, "blocked", arrive, arrive + blocked)
             yield timeout(done - env.now)
-            self.tool = bin_.position
+            self.tool = self.bin.position
+            self.busy = False
 
     def _noop(self) -> Generator[simpy.Event, Any, None]:
         """Wait until the next part enters the workspace or one belt tick, if sooner."""

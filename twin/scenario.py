@@ -31,7 +31,7 @@ from pydantic import (
     model_validator,
 )
 
-from pnp_twin.twin.geometry import workspaces
+from pnp_twin.twin.geometry import bin_position, mount_position, workspaces
 
 
 def _integral(value: Any) -> Any:
@@ -113,6 +113,28 @@ class BeltConfig(Frozen):
     ] = Field((64, 8), description="Observation grid: cells along the belt, cells across.")
 
 
+KindName = Annotated[Text, Field(min_length=1, max_length=64, pattern=r"^[^\x00-\x1f\x7f,]*$")]
+
+
+class KindConfig(Frozen):
+    """One kind of part: its share of the flow, its value, and optionally its own grip and
+    release times (every robot's, for this kind)."""
+
+    name: KindName = Field(description="Name of the kind, as a trace's kind column writes it.")
+    share: Annotated[Real, Field(gt=0, le=1)] = num(
+        1.0, "1", "Share of the part flow, 0 < share <= 1; the shares sum to 1."
+    )
+    value: Annotated[Real, Field(ge=0, le=1e9)] = num(
+        1.0, "1", "Value of one part (any unit: euros, kg of material); value_rate weighs by it."
+    )
+    pick_time: Annotated[Real, Field(ge=0, le=60)] | None = num(
+        None, "s", "Grip time of this kind in s, on every robot; default the robot's."
+    )
+    place_time: Annotated[Real, Field(ge=0, le=60)] | None = num(
+        None, "s", "Release time of this kind in s, on every robot; default the robot's."
+    )
+
+
 class FeederConfig(Frozen):
     """Where and when parts are put on the belt at x = 0."""
 
@@ -141,9 +163,28 @@ class FeederConfig(Frozen):
     lateral_sd: Real = num(
         0.08, "m", "SD of the truncated normal in m; at most the belt width.", gt=0, le=10
     )
+    kinds: tuple[KindConfig, ...] = Field(
+        (),
+        max_length=64,
+        description="Kinds of part ([[feeder.kinds]] name, share, value); default one kind. "
+        "Drawn by share from their own stream, or named by a trace's kind column.",
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> FeederConfig:
+        if self.kinds:
+            names = [k.name for k in self.kinds]
+            twice = next((n for i, n in enumerate(names) if n in names[:i]), None)
+            if twice is not None:
+                raise ValueError(
+                    f"feeder.kinds.name: '{twice}' is given twice; name each kind once"
+                )
+            total = math.fsum(k.share for k in self.kinds)
+            if abs(total - 1.0) > 1e-6:
+                raise ValueError(
+                    f"feeder.kinds.share: the shares sum to {total:g}; they must sum to 1 "
+                    f"({' + '.join(f'{k.share:g}' for k in self.kinds)})"
+                )
         if self.arrival == "trace" and not self.trace:
             raise ValueError("feeder.trace: a trace file is required when arrival = 'trace'")
         if self.arrival != "trace" and self.trace is not None:
@@ -168,6 +209,11 @@ Mtbf = Annotated[
     Real, Field(ge=0, le=1e9), least(0.1, "s", "10 breakdowns per second", zero_is_off=True)
 ]
 Mttr = Annotated[Real, Field(ge=0, le=1e7)]
+Side = Literal["upper", "lower", "over"]
+Reach = Annotated[Real, Field(ge=0, le=100)]
+BaseOffset = Annotated[Real, Field(ge=0, le=10)]
+Kinds = tuple[KindName, ...]
+SIDES = ("upper", "lower", "over")
 
 
 class RobotOverride(Frozen):
@@ -183,6 +229,12 @@ class RobotOverride(Frozen):
     bin_offset: BinOffset | None = num(None, "m", "Bin position of this robot, as robots'.")
     mtbf: Mtbf | None = num(None, "s", "Mean time between failures of this robot in s.")
     mttr: Mttr | None = num(None, "s", "Mean time to repair of this robot in s.")
+    side: Side | None = Field(None, description="Side of this robot: upper, lower or over.")
+    reach: Reach | None = num(None, "m", "Reach of this robot from its base in m; 0: no limit.")
+    base_offset: BaseOffset | None = num(
+        None, "m", "Distance of this robot's base outward from its belt edge in m."
+    )
+    kinds: Kinds | None = Field(None, description="Kinds this robot picks; empty: all.")
 
 
 class RobotsConfig(Frozen):
@@ -222,6 +274,27 @@ class RobotsConfig(Frozen):
     failure_distribution: Literal["exponential", "fixed"] = Field(
         "exponential", description="Distribution of times between failures and to repair."
     )
+    side: Side = Field(
+        "upper",
+        description="Where the robots stand: beside the belt on the upper side (y > W), the "
+        "lower side (y < 0; the bin mirrored there), or over the belt (base above its centre "
+        "line; bin offset as given). Workspaces are laid out back to back per side.",
+    )
+    reach: Reach = num(
+        0.0,
+        "m",
+        "Reach in m: a part is a candidate only if its interception point lies within this "
+        "distance of the robot's base (a disc for a delta robot); 0 = no limit.",
+    )
+    base_offset: BaseOffset = num(
+        0.0,
+        "m",
+        "Distance of the base outward from the belt edge on the robot's side, in m (upper, "
+        "lower); an 'over' robot's base is above the belt's centre line.",
+    )
+    kinds: Kinds = Field(
+        (), description="Kinds of part the robots pick (feeder.kinds names); empty = all."
+    )
     overrides: tuple[RobotOverride, ...] = Field(
         (),
         max_length=64,
@@ -246,15 +319,37 @@ class RobotsConfig(Frozen):
             seen.add(o.robot)
         return self
 
+    def param(self, robot: int, name: str) -> Any:
+        """Robot ``robot``'s (1-based) value of ``name``, its override if set."""
+        for o in self.overrides:
+            if o.robot == robot:
+                value = getattr(o, name)
+                if value is not None:
+                    return value
+        return getattr(self, name)
+
+    def sides(self) -> list[str]:
+        """Each robot's side, robot 1 first."""
+        return [self.param(i, "side") for i in range(1, self.count + 1)]
+
     def layout(self) -> list[tuple[float, float]]:
-        """Workspace bounds [a_i, b_i] in m, upstream first (:func:`twin.geometry.workspaces`)."""
-        return workspaces(
-            self.count,
-            self.first_workspace_start,
-            self.workspace_length,
-            self.workspace_gap,
-            self.workspaces,
-        )
+        """Workspace bounds [a_i, b_i] in m (:func:`twin.geometry.workspaces`): explicit ones,
+        or laid out back to back per side, in robot order (facing robots share x-ranges)."""
+        if self.workspaces is not None:
+            return workspaces(self.count, 0.0, 1.0, 0.0, self.workspaces)
+        sides = self.sides()
+        per_side = {
+            side: iter(
+                workspaces(
+                    sides.count(side),
+                    self.first_workspace_start,
+                    self.workspace_length,
+                    self.workspace_gap,
+                )
+            )
+            for side in SIDES
+        }
+        return [next(per_side[side]) for side in sides]
 
 
 class BinsConfig(Frozen):
@@ -412,6 +507,8 @@ class Scenario(Frozen):
             )
         self._check_layout()
         self._check_arms()
+        self._check_kinds()
+        self._check_reach()
         f, w = self.feeder, self.belt.width
         if f.lateral_mean is not None and f.lateral_mean > w:
             raise ValueError(
@@ -435,19 +532,25 @@ class Scenario(Frozen):
 
     def _check_layout(self) -> None:
         spaces = self.robots.layout()
-        prev_b = -math.inf
-        for i, (a, b) in enumerate(spaces, start=1):
+        sides = self.robots.sides()
+        prev: dict[str, tuple[int, float]] = {}  # side -> (robot, end) of its last workspace
+        one_side = len(set(sides)) == 1
+        for i, ((a, b), side) in enumerate(zip(spaces, sides, strict=True), start=1):
             if not 0 <= a < b:
                 raise ValueError(f"robots.workspaces: robot {i} has [{a}, {b}]; need 0 <= a < b")
+            j, prev_b = prev.get(side, (0, -math.inf))
             if a < prev_b:
+                where = "" if one_side else f" on the {side} side"
                 raise ValueError(
-                    f"robots.workspaces: robot {i} starts at {a} m inside robot {i - 1}'s "
-                    f"workspace (ends {prev_b} m); workspaces must not overlap, upstream first"
+                    f"robots.workspaces: robot {i} starts at {a} m inside robot {j}'s "
+                    f"workspace (ends {prev_b} m){where}; workspaces must not overlap, "
+                    "upstream first" + ("" if one_side else " on each side")
                 )
-            prev_b = b
-        if prev_b > self.belt.length + 1e-9:
+            prev[side] = (i, b)
+        last = max(b for _, b in spaces)
+        if last > self.belt.length + 1e-9:
             raise ValueError(
-                f"robots.workspaces: the last workspace ends at {prev_b:g} m, beyond "
+                f"robots.workspaces: the last workspace ends at {last:g} m, beyond "
                 f"belt.length = {self.belt.length:g} m; lengthen the belt or shrink workspaces"
             )
 
@@ -469,11 +572,46 @@ class Scenario(Frozen):
                     f"than {least:.3g} m/s^2, or 0 for no limit"
                 )
 
+    def _check_kinds(self) -> None:
+        known = {k.name for k in self.feeder.kinds}
+        for i in range(1, self.robots.count + 1):
+            for kind in self.robot_param(i, "kinds"):
+                if kind not in known:
+                    allowed = ", ".join(sorted(known)) if known else "none: feeder.kinds is empty"
+                    raise ValueError(
+                        f"robots.kinds: robot {i} picks '{kind}', which is not a kind of "
+                        f"feeder.kinds; allowed {allowed}"
+                    )
+
+    def _check_reach(self) -> None:
+        w = self.belt.width
+        for i, (a, b) in enumerate(self.robots.layout(), start=1):
+            reach = self.robot_param(i, "reach")
+            side = self.robot_param(i, "side")
+            if reach <= 0:
+                continue
+            offset = self.robot_param(i, "base_offset")
+            base = mount_position((a, b), w, side, offset)
+            gap = 0.0 if side == "over" else offset
+            if reach <= gap:
+                raise ValueError(
+                    f"robots.reach: {reach:g} m for robot {i} does not touch the belt (its "
+                    f"base is {offset:g} m beyond the {side} edge); give more than {gap:g} m, "
+                    "or 0 for no limit"
+                )
+            bx, by = bin_position((a, b), w, self.robot_param(i, "bin_offset"), side)
+            far = math.hypot(bx - base[0], by - base[1])
+            if far > reach + 1e-9:
+                raise ValueError(
+                    f"robots.reach: {reach:g} m for robot {i} does not reach its bin "
+                    f"({far:.3g} m from its base); give at least {far:.3g} m, move the bin "
+                    "(bin_offset), or 0 for no limit"
+                )
+
     def robot_param(self, robot: int, name: str) -> Any:
         """Robot ``robot``'s (1-based) value of ``name``, its override if set."""
-        for o in self.robots.overrides:
-            if o.robot == robot:
-                value = getattr(o, name)
-                if value is not None:
-                    return value
-        return getattr(self.robots, name)
+        return self.robots.param(robot, name)
+
+    def kind_names(self) -> tuple[str, ...]:
+        """The kinds of part, in the order feeder.kinds gives them ("" alone: one kind)."""
+        return tuple(k.name for k in self.feeder.kinds) or ("",)

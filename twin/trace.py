@@ -54,6 +54,7 @@ class Trace:
     ys: np.ndarray
     kinds: list[str] | None
     offset: float = 0.0
+    lines: tuple[int, ...] = ()  # the file's line number of each row
 
     @property
     def end(self) -> float:
@@ -225,7 +226,7 @@ def load_trace(path: Path, width: float) -> Trace:
             path,
             offset,
         )
-    return Trace(path, times, ys, kinds, offset)
+    return Trace(path, times, ys, kinds, offset, tuple(lines))
 
 
 def read_trace(path: Path, width: float) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
@@ -255,6 +256,7 @@ def _checked(scenario: Scenario, path: Path) -> Trace:
             f"({span}), so the feed would stop early; give duration <= {end:.6g} "
             f"(--set duration={math.floor(end * 1000) / 1000:g})"
         )
+    _check_kinds(scenario, trace)
     counted = int(((trace.times >= scenario.warmup) & (trace.times < scenario.duration)).sum())
     if counted == 0:
         raise TraceError(
@@ -262,6 +264,25 @@ def _checked(scenario: Scenario, path: Path) -> Trace:
             f"[{scenario.warmup:g}, {scenario.duration:g}) s; lower warmup or raise duration"
         )
     return trace
+
+
+def _check_kinds(scenario: Scenario, trace: Trace) -> None:
+    """On a line with feeder.kinds, every row's kind must name one of them."""
+    names = [k.name for k in scenario.feeder.kinds]
+    if not names:
+        return
+    if trace.kinds is None:
+        raise TraceError(
+            f"feeder.trace: '{trace.path}' has no kind column, but feeder.kinds names "
+            f"{', '.join(names)}; add a kind column (time,y,kind) or remove feeder.kinds"
+        )
+    known = set(names)
+    for i, kind in enumerate(trace.kinds):
+        if kind not in known:
+            raise TraceError(
+                f"feeder.trace: '{trace.path}' line {trace.lines[i]}: kind '{kind}' is not "
+                f"a kind of feeder.kinds; allowed {', '.join(names)}"
+            )
 
 
 def gap_stats(trace: Trace | Sequence[Trace]) -> tuple[float, float]:

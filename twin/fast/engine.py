@@ -63,10 +63,12 @@ def rule_codes(policy: Policy, n_robots: int) -> list[int] | None:
     return [L.RULE_NAMES.index(r) for r in rules]
 
 
-def _robot_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray]:
-    """The kernel's robot parameters: the plan's robots as rows of arrays."""
+def _robot_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel's robot parameters: the plan's robots as rows of arrays (``kp``: per
+    robot and kind code)."""
     fp = np.zeros((len(plan.robots), L.N_FP))
     ip = np.zeros((len(plan.robots), L.N_IP), dtype=np.int64)
+    kp = np.zeros((len(plan.robots), len(plan.kinds), L.N_KP))
     for r, rp in enumerate(plan.robots):
         spec = rp.spec
         fp[r, L.BA], fp[r, L.BB] = spec.workspace
@@ -79,7 +81,19 @@ def _robot_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray]:
         fp[r, L.MTBF], fp[r, L.MTTR] = rp.mtbf, rp.mttr
         if rp.breaks:
             ip[r, L.FAILMODE] = L.FIXED if rp.failures == "fixed" else L.EXPONENTIAL
-    return fp, ip
+        fp[r, L.REACH] = spec.reach
+        fp[r, L.MOUNTX], fp[r, L.MOUNTY] = spec.mount
+        fp[r, L.BINSIDE] = spec.bin_side
+        ip[r, L.PRIO] = rp.priority
+        ip[r, L.FILTER] = int(spec.reach > 0 or not all(spec.picks) or plan.rivals)
+        for k in range(len(plan.kinds)):
+            kp[r, k] = (
+                1.0 if not spec.picks or spec.picks[k] else 0.0,
+                spec.pick_of(k),
+                spec.place_of(k),
+                spec.value_of(k),
+            )
+    return fp, ip, kp
 
 
 STATE = ("ip", *State._fields, *Records._fields, "_c_i", "_c_f")
@@ -121,10 +135,12 @@ class FastLine:
         seeds = plan.seeds()  # generators are built only for the streams this run uses
         b = scenario.belt
         arrivals, lateral = plan.stream(seeds, ARRIVALS), plan.stream(seeds, LATERAL)
-        feeder = Feeder(scenario.feeder, b.width, arrivals, lateral, scenario.source_dir)
+        kinds = plan.stream(seeds, plan.kinds_stream) if scenario.feeder.kinds else None
+        feeder = Feeder(scenario.feeder, b.width, arrivals, lateral, scenario.source_dir, kinds)
         self.fed, self.y, self.kind = feeder.stream(self.duration)
         self.fed = np.ascontiguousarray(self.fed, dtype=np.float64)
         self.y = np.ascontiguousarray(self.y, dtype=np.float64)
+        self.kind_code = plan.kind_codes(self.kind, len(self.fed))
         self.specs = plan.specs
         self.external: Policy | None = None
         self._seeds = seeds
@@ -151,7 +167,7 @@ class FastLine:
                 )
             codes = [L.RULE_NAMES.index(r) for r in (names * n if len(names) == 1 else names)]
         self.policy = policy
-        self.fp, self.ip = _robot_params(plan)
+        self.fp, self.ip, self.kp = _robot_params(plan)
         self.ip[:, L.RULE] = codes
         self.gp = np.zeros(L.N_GP)
         self.gp[L.V] = b.speed
@@ -256,8 +272,9 @@ class FastLine:
         n_parts = len(self.fed)
         n = len(self.specs)
         self._streams(siro_room, exp_room)
-        self.fs = np.zeros((n, L.N_FS))
-        self.ist = np.zeros((n, L.N_IS), dtype=np.int64)
+        more = len(self.plan.kinds) - 1  # a bin per kind: columns beyond the layout's
+        self.fs = np.zeros((n, L.N_FS + more))
+        self.ist = np.zeros((n, L.N_IS + more), dtype=np.int64)
         self.gs = np.zeros(L.N_GS, dtype=np.int64)
         self.gf = np.zeros(1)
         # the large arrays in memory earlier runs let go (twin.fast.pool), set as new ones
@@ -312,6 +329,7 @@ class FastLine:
             c_f[:n, 0].tolist(),
             c_f[:n, 1].tolist(),
             c_f[:n, 2].tolist(),
+            self.kind_code[self._c_i[:n]].tolist(),
         )
         k = self.external.choose(d)
         if k < 0 or k >= n:  # as Gateway.choose
@@ -320,7 +338,7 @@ class FastLine:
             )
         rule = getattr(self.external, "last_rule", None)
         self.extra_counts[(r, rule or "?")] += 1
-        choose_external(self.params, self.state, self.scratch, k, self._code(rule))
+        choose_external(self.params, self.state, self.streams, self.scratch, k, self._code(rule))
 
     def _code(self, rule: str | None) -> int:
         """The rule code recorded with a pick: RULE_NAMES' index, or an extra name's."""
@@ -368,7 +386,7 @@ class FastLine:
     # -- the kernel's structures (views of the arrays above, built for each call) ----------
     @property
     def params(self) -> Params:
-        return Params(self.fp, self.ip, self.gp, self.gi)
+        return Params(self.fp, self.ip, self.gp, self.gi, self.kp)
 
     @property
     def state(self) -> State:
@@ -380,7 +398,7 @@ class FastLine:
 
     @property
     def streams(self) -> Streams:
-        return Streams(self.fed, self.y, self._siro, self._exps)
+        return Streams(self.fed, self.y, self._siro, self._exps, self.kind_code)
 
     @property
     def scratch(self) -> Scratch:

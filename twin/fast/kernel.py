@@ -39,8 +39,11 @@ from pnp_twin.twin.fast.layout import (
     EXPONENTIAL,
     FAILMODE,
     HOLD,
+    KPLACE,
     MTBF,
     MTTR,
+    N_FS,
+    N_IS,
     NEXTFAIL,
     NORMAL,
     NOW,
@@ -55,7 +58,6 @@ from pnp_twin.twin.fast.layout import (
     PC_NOOP,
     PC_PLACE,
     PC_START,
-    PLACE,
     RELEASES,
     ROOM_EXPS,
     ROOM_SIRO,
@@ -175,15 +177,18 @@ def run_events(p, s, rec, st, sc, stop_at):
                 arrive = now + dist / v_r
             else:
                 arrive = now + move_time(dist, v_r, acc)
+            kind = st.kind[part]  # its chute: kind 0's columns, then one more per kind
+            ready = BINREADY if kind == 0 else N_FS + kind - 1
+            count = BINCOUNT if kind == 0 else N_IS + kind - 1
             start = arrive
-            if fs[r, BINREADY] > arrive:
-                start = fs[r, BINREADY]
-            done = start + fp[r, PLACE]
-            ist[r, BINCOUNT] += 1
-            if capacity and ist[r, BINCOUNT] >= capacity:
-                ist[r, BINCOUNT] = 0
+            if fs[r, ready] > arrive:
+                start = fs[r, ready]
+            done = start + p.kp[r, kind, KPLACE]
+            ist[r, count] += 1
+            if capacity and ist[r, count] >= capacity:
+                ist[r, count] = 0
                 ist[r, BOXES] += 1
-                fs[r, BINREADY] = done + gp[CHANGE]
+                fs[r, ready] = done + gp[CHANGE]
             blocked = start - arrive
             rec_f[part, 2] = done
             if blocked > 0.0:

@@ -9,16 +9,22 @@ from pnp_twin.twin.plan import RULES, SCHEMES
 
 # robot float parameters fp[r, .]
 BA, BB, XLO, QUAD, VR, ACC, PICK, PLACE, BX, BY, BASEX, BASEY, MTBF, MTTR = range(14)
-N_FP = 14
+REACH, MOUNTX, MOUNTY, BINSIDE = range(14, 18)  # reach (0: none) from the mount; SD's sign
+N_FP = 18
 # robot int parameters ip[r, .]
 RULE, FAILMODE = range(2)
-N_IP = 2
+PRIO = 2  # rank among facing robots on an exact tie (lower first)
+FILTER = 3  # 1: candidates pass the kind, reach and rival tests too (Robot.filtered)
+N_IP = 4
 NOFAIL, EXPONENTIAL, FIXED = range(3)
+# per robot and kind parameters kp[r, kind, .]
+KPICKS, KPICK, KPLACE, KVALUE = range(4)  # picks this kind (1/0), grip, release, value
+N_KP = 4
 # rule codes (twin.plan.RULES' indices), then the NooP column of the decision counts
-FIFO, LIFO, SIRO, SD, LD, SPT, NOOP = range(7)
+FIFO, LIFO, SIRO, SD, LD, SPT, VAL, NOOP = range(8)
 RULE_NAMES = (*RULES, "NooP")
-assert RULE_NAMES == ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT", "NooP")
-EXTERNAL = 7  # ip[r, RULE]: the caller chooses (the kernel stops with ST_CHOOSE)
+assert RULE_NAMES == ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT", "VAL", "NooP")
+EXTERNAL = 8  # ip[r, RULE]: the caller chooses (the kernel stops with ST_CHOOSE)
 NO_RULE = -1  # the rule code of a pick whose policy names no rule ("?")
 # line float parameters gp[.]
 V, TICK, END_AT, CHANGE, HALF, TWO = range(6)
@@ -32,7 +38,7 @@ assert SCHEME_CODES == {"t_continue": T_CONTINUE, "t_all": T_ALL, "t_any": T_ANY
 # robot float state fs[r, .]
 TOOLX, TOOLY, NEXTFAIL, APPROACH, T0, TAPP, TX, TY, WAKE, WAIT0, BINREADY, DOWN0 = range(12)
 CAL, CALW = 12, 14  # CAL + j, CALW + j: an event calendar node's robot and its wake-up
-N_FS = 16
+N_FS = 16  # then one BINREADY column per kind code above 0 (N_FS + kind - 1)
 # robot int state ist[r, .]
 PC, ACTIVE, WPRIO, WSEQ, CLAIMED, PART, DOWN, WAITING, EXPECTED = range(9)
 BINCOUNT, BOXES, EXPIDX = range(9, 12)
@@ -43,7 +49,7 @@ PENDING = 16  # hold mode: the robot is in the epoch the caller must answer
 LASTCLAIM = 17  # the part of the robot's last claim (environments reset it to -1)
 NOOPPART = 18  # the part whose entry timed the robot's last NooP (n parts: none)
 NOOPSTAMP = 19  # gs[RELEASES] when NOOPPART was found (it bounds the next search if equal)
-N_IS = 20
+N_IS = 20  # then one BINCOUNT column per kind code above 0 (N_IS + kind - 1)
 # line int state gs[.]
 SEQ, EPOCHS, SIROIDX, NSPANS, STATUS = range(5)
 DROBOT, DN, NPENDING = range(5, 8)  # ST_CHOOSE: the robot, its candidates; hold: epoch size

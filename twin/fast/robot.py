@@ -21,22 +21,31 @@ from pnp_twin.twin.fast.layout import (
     BASEX,
     BASEY,
     BB,
+    BINSIDE,
     BX,
     BY,
     CLAIMED,
     DN,
+    DOWN,
     DROBOT,
     EXPIDX,
     EXTERNAL,
     FAILMODE,
     FIFO,
+    FILTER,
     FIXED,
     HALF,
     HINT_HI,
     HINT_LO,
+    KPICK,
+    KPICKS,
+    KPLACE,
+    KVALUE,
     LASTCLAIM,
     LD,
     LIFO,
+    MOUNTX,
+    MOUNTY,
     MTBF,
     NEXTFAIL,
     NOOP,
@@ -45,12 +54,14 @@ from pnp_twin.twin.fast.layout import (
     NORMAL,
     NSPANS,
     PART,
+    PC,
     PC_APPROACH,
     PC_NOOP,
+    PC_PLACE,
     PC_START,
-    PICK,
-    PLACE,
+    PRIO,
     QUAD,
+    REACH,
     RELEASES,
     RULE,
     RULENOW,
@@ -71,6 +82,7 @@ from pnp_twin.twin.fast.layout import (
     TX,
     TY,
     URGENT,
+    VAL,
     VR,
     XLO,
     V,
@@ -143,6 +155,81 @@ def _draw(p, s, st, r, col):
     return mean * st.exps[r, k]
 
 
+@compiled(inline=True)
+def _intercept(p, s, q, x, y):
+    """Robot.intercept: robot q's interception time of a part now at (x, y)."""
+    fp, fs = p.fp, s.fs
+    v = p.gp[V]
+    dx = x - fs[q, TOOLX]
+    dy = y - fs[q, TOOLY]
+    acc = fp[q, ACC]
+    if acc > 0.0:
+        return intercept_time(dx, dy, v, fp[q, VR], acc)
+    quad = fp[q, QUAD]
+    return (dx * v + math.sqrt(dx * dx * (v * v) + quad * (dx * dx + dy * dy))) / quad
+
+
+@compiled(inline=True)
+def _can_take(p, q, kind, x, y, t):
+    """Robot.can_take: a kind robot q picks, met inside its [a, b] and within its reach."""
+    fp = p.fp
+    if p.kp[q, kind, KPICKS] == 0.0:
+        return False
+    xi = x + p.gp[V] * t
+    if not (fp[q, BA] <= xi and xi <= fp[q, BB]):
+        return False
+    reach = fp[q, REACH]
+    if reach > 0.0:
+        mx = fp[q, MOUNTX]
+        my = fp[q, MOUNTY]
+        return (xi - mx) * (xi - mx) + (y - my) * (y - my) <= reach * reach
+    return True
+
+
+@compiled()
+def _yields_to(p, s, r, kind, x, y, t):
+    """Robot._yields_to: an idle facing robot intercepts this part sooner (or as soon, and
+    comes first in the priority order)."""
+    fp, ist = p.fp, s.ist
+    for q in range(ist.shape[0]):
+        if q == r or not (fp[q, BA] < fp[r, BB] and fp[r, BA] < fp[q, BB]):
+            continue  # not a rival: the x-ranges do not overlap
+        if ist[q, CLAIMED] >= 0 or ist[q, PC] == PC_PLACE or ist[q, DOWN]:
+            continue  # busy (approaching, carrying) or down: not idle
+        t_q = _intercept(p, s, q, x, y)
+        if not _can_take(p, q, kind, x, y, t_q):
+            continue
+        if t_q < t or (t_q == t and p.ip[q, PRIO] < p.ip[r, PRIO]):
+            return True
+    return False
+
+
+@compiled()
+def _filtered_candidates(p, s, st, sc, r, now, lo, hi):
+    """Robot._filtered_candidates: the candidates in [lo, hi) passing every test."""
+    fed, ys, holder = st.fed, st.ys, s.holder
+    c_i, c_f = sc.c_i, sc.c_f
+    v = p.gp[V]
+    n = 0
+    for i in range(lo, hi):
+        if holder[i] != FREE:
+            continue
+        x = v * now - v * fed[i]
+        y = ys[i]
+        kind = st.kind[i]
+        t = _intercept(p, s, r, x, y)
+        if not _can_take(p, r, kind, x, y, t):
+            continue
+        if _yields_to(p, s, r, kind, x, y, t):
+            continue
+        c_i[n] = i
+        c_f[n, 0] = x
+        c_f[n, 1] = y
+        c_f[n, 2] = t
+        n += 1
+    return n
+
+
 @compiled()
 def _candidates(p, s, st, sc, r, now):
     """Robot._candidates: unclaimed parts whose interception point lies in [a, b]."""
@@ -165,6 +252,8 @@ def _candidates(p, s, st, sc, r, now):
     hi = _bisect(fed, now - lo_x / v, True, ist[r, HINT_HI])
     ist[r, HINT_LO] = lo
     ist[r, HINT_HI] = hi
+    if p.ip[r, FILTER]:
+        return _filtered_candidates(p, s, st, sc, r, now, lo, hi)
     n = 0
     for i in range(lo, hi):
         if holder[i] != FREE:
@@ -228,31 +317,35 @@ def _choose(p, s, st, sc, r, n):
         return _lemire(st.siro, s.gs, n)
     if rule == SD or rule == LD:
         best = 0
+        near = (rule == SD) == (fp[r, BINSIDE] > 0.0)  # the largest y, else the smallest
         for k in range(1, n):
-            if rule == SD and c_f[k, 1] > c_f[best, 1]:
+            if near and c_f[k, 1] > c_f[best, 1]:
                 best = k
-            elif rule == LD and c_f[k, 1] < c_f[best, 1]:
+            elif not near and c_f[k, 1] < c_f[best, 1]:
                 best = k
         return best
-    # SPT: the smallest full cycle time, first of equals
+    # SPT: the smallest full cycle time, first of equals; VAL: the highest value first
     v = gp[V]
     bx = fp[r, BX]
     by = fp[r, BY]
     two = gp[TWO]
     half = gp[HALF]
+    kp = p.kp
     best = 0
     best_c = math.inf
-    pick = fp[r, PICK]
-    place = fp[r, PLACE]
+    best_v = -math.inf
     for k in range(n):
+        kind = st.kind[sc.c_i[k]]
         t = c_f[k, 2]
         xi = c_f[k, 0] + v * t
         d = py_pow(py_pow(bx - xi, two) + py_pow(by - c_f[k, 1], two), half)
         transfer = move_time(d, fp[r, VR], fp[r, ACC])
-        c = t + pick + transfer + place
-        if k == 0 or c < best_c:
+        c = t + kp[r, kind, KPICK] + transfer + kp[r, kind, KPLACE]
+        value = kp[r, kind, KVALUE] if rule == VAL else 0.0
+        if k == 0 or value > best_v or (value == best_v and c < best_c):
             best = k
             best_c = c
+            best_v = value
     return best
 
 
@@ -304,18 +397,20 @@ def _decide(p, s, st, sc, r, now, v):
     k = _choose(p, s, st, sc, r, n)
     s.counts[r, rule] += 1
     _claim(s, sc, r, now, v, k, rule)
-    _schedule(s, r, now + (fs[r, TAPP] + fp[r, PICK]), NORMAL, PC_APPROACH)
+    pick = p.kp[r, st.kind[ist[r, PART]], KPICK]
+    _schedule(s, r, now + (fs[r, TAPP] + pick), NORMAL, PC_APPROACH)
 
 
 @compiled()
-def choose_external(p, s, sc, k, rule):
+def choose_external(p, s, st, sc, k, rule):
     """The caller's answer to ST_CHOOSE: candidate ``k``, recorded under rule code ``rule``
     (a code of layout.RULE_NAMES, a caller's own code above them, or NO_RULE)."""
     fs, gs = s.fs, s.gs
     r = gs[DROBOT]
     now = fs[r, T0]
     _claim(s, sc, r, now, p.gp[V], k, rule)
-    _schedule(s, r, now + (fs[r, TAPP] + p.fp[r, PICK]), NORMAL, PC_APPROACH)
+    pick = p.kp[r, st.kind[s.ist[r, PART]], KPICK]
+    _schedule(s, r, now + (fs[r, TAPP] + pick), NORMAL, PC_APPROACH)
     gs[STATUS] = 0
 
 

@@ -62,12 +62,12 @@ def _continue_all(p, at, work, st0, futures, picks, rule, stop_at, window, total
     ``at``: the line at its decision, ``work``: where each continuation runs (each a
     (:class:`~twin.fast.structs.State`, :class:`~twin.fast.structs.Records`,
     :class:`~twin.fast.structs.Scratch`)); ``st0``: the line's streams (their pre-drawn
-    draws). ``futures`` = (feds, ys, lens, n_kept): one future per row of ``feds``/``ys``,
+    draws). ``futures`` = (feds, ys, lens, n_kept, kinds): one future per row of ``feds``/``ys``,
     padded with fed = inf past ``lens[m]`` (the kernel sees no part there); the work arrays
     have one row per padded part. ``window``: (lo, hi), the feed times whose grips count."""
     s0, rec0, sc0 = at
     s, rec, sc = work
-    feds, ys, lens, n_kept = futures
+    feds, ys, lens, n_kept, kinds = futures
     lo, hi = window
     fs0, ist0, gs0, gf0, holder0, left_at0, counts0 = s0
     fs, ist, gs, gf, holder, left_at, counts = s
@@ -75,7 +75,7 @@ def _continue_all(p, at, work, st0, futures, picks, rule, stop_at, window, total
     for m in range(feds.shape[0]):
         n = lens[m]
         fed = feds[m]
-        st = Streams(fed, ys[m], st0.siro, st0.exps)
+        st = Streams(fed, ys[m], st0.siro, st0.exps, kinds)
         for j in range(picks.shape[0]):
             _copy(fs0, fs, fs.shape[0], 0.0)
             _copy(ist0, ist, ist.shape[0], 0)
@@ -96,7 +96,7 @@ def _continue_all(p, at, work, st0, futures, picks, rule, stop_at, window, total
                 rec_f[i, 3] = 0.0
             gs[L.RELEASES] += 1  # parts past n_kept replaced: robots' NooP searches restart
             _retime_noops(p, s, fed, n, n_kept)
-            choose_external(p, s, sc, picks[j], rule)
+            choose_external(p, s, st, sc, picks[j], rule)
             status = run_events(p, s, rec, st, sc, stop_at)
             if status != 0:
                 return status
@@ -154,7 +154,6 @@ def _run(
 ) -> tuple[int, np.ndarray, tuple[np.ndarray, np.ndarray]]:
     if int(line.gs[L.STATUS]) != L.ST_CHOOSE:
         raise ValueError("continuations: the line is not stopped at a decision")
-    n_rob = len(line.specs)
     width = max(len(f) for f, _ in futures)
     feds = np.full((len(futures), width), math.inf)
     ys = np.zeros((len(futures), width))
@@ -169,8 +168,8 @@ def _run(
     rec_i, rec_f = np.zeros((width, 2), dtype=np.int64), np.zeros((width, 4))
     work = (
         State(
-            np.zeros((n_rob, L.N_FS)),
-            np.zeros((n_rob, L.N_IS), np.int64),
+            np.zeros_like(line.fs),
+            np.zeros_like(line.ist),
             np.zeros(L.N_GS, dtype=np.int64),
             np.zeros(1),
             np.zeros(width, dtype=np.int64),
@@ -181,7 +180,8 @@ def _run(
         Scratch(np.zeros(width + 1, dtype=np.int64), np.zeros((width + 1, 3))),
     )
     at = (line.state, line.records, line.scratch)
-    futures_ = (feds, ys, lens, n_kept)
+    kinds = np.zeros(width, dtype=np.int64)  # rollouts run lines of one kind
+    futures_ = (feds, ys, lens, n_kept, kinds)
     asked = np.asarray(picks, dtype=np.int64)
     status = _continue_all(
         p, at, work, line.streams, futures_, asked, code, stop_at, window, totals

@@ -25,6 +25,7 @@ class Params(NamedTuple):
     ip: np.ndarray  # int64 (robots, N_IP): rule code (set anew in hold mode), failure mode
     gp: np.ndarray  # float64 (N_GP,): belt speed, tick, end of run, box change, constants
     gi: np.ndarray  # int64 (N_GI,): termination scheme, bin capacity, hold mode
+    kp: np.ndarray  # float64 (robots, kinds, N_KP): picks the kind, grip, release, value
 
 
 class State(NamedTuple):
@@ -55,6 +56,7 @@ class Streams(NamedTuple):
     ys: np.ndarray  # float64 (parts,): lateral positions
     siro: np.ndarray  # int64 (k,): the policy stream's raw next_uint32 outputs (SIRO)
     exps: np.ndarray  # float64 (robots, k): standard exponentials (breakdowns)
+    kind: np.ndarray  # int64 (parts,): each part's kind code
 
 
 class Scratch(NamedTuple):
@@ -67,7 +69,7 @@ class Scratch(NamedTuple):
 @compiled(inline=True)
 def params_of(p, ip, e):
     """Line e's parameters: shared ones, and its own row of a batch's rule codes ``ip``."""
-    return Params(p.fp, ip[e], p.gp, p.gi)
+    return Params(p.fp, ip[e], p.gp, p.gi, p.kp)
 
 
 @compiled(inline=True)
@@ -85,7 +87,7 @@ def records_of(b, k):
 @compiled(inline=True)
 def streams_of(b, e):
     """Line e's streams in a batch of streams (a view)."""
-    return Streams(b.fed[e], b.ys[e], b.siro[e], b.exps[e])
+    return Streams(b.fed[e], b.ys[e], b.siro[e], b.exps[e], b.kind[e])
 
 
 @compiled(inline=True)

@@ -139,7 +139,15 @@ class LineBatch:
         self.n = n
         template = FastLine(scenario, rules=["FIFO"], hold=True)
         self.plan = template.plan
+        shape = self.plan.new_shape()
+        if shape is not None:
+            raise ValueError(
+                f"{shape}: the vector environments run lines of one kind of part with every "
+                "robot on the upper side and no reach limit; use the Gymnasium or PettingZoo "
+                "environment (one line) for this scenario"
+            )
         self.fp, self.ip0, self.gp, self.gi = template.fp, template.ip, template.gp, template.gi
+        self.kp = template.kp
         self.n_robots = r = len(template.specs)
         self.siro = siro
         self.breaks = template.breaks
@@ -182,6 +190,7 @@ class LineBatch:
         self.gf = np.zeros((n, 1))
         self.fed = np.full((n, parts), math.inf)
         self.ys = np.zeros((n, parts))
+        self.kind = np.zeros((n, parts), dtype=np.int64)  # one kind: every code 0
         self.holder = np.full((n, parts), -1, dtype=np.int64)
         self.left_at = np.full((n, parts), math.inf)
         self.counts = np.zeros((n, r, len(L.RULE_NAMES)), dtype=np.int64)
@@ -218,7 +227,8 @@ class LineBatch:
     def _grow(self, parts: int) -> None:
         """Room for ``parts`` parts per line, the lines' parts kept."""
         old = self.parts
-        for name, fill in (("fed", math.inf), ("ys", 0.0), ("holder", -1), ("left_at", math.inf)):
+        grown = (("fed", math.inf), ("ys", 0.0), ("kind", 0), ("holder", -1), ("left_at", math.inf))
+        for name, fill in grown:
             a = getattr(self, name)
             b = np.full((self.n, parts), fill, dtype=a.dtype)
             b[:, :old] = a
@@ -249,8 +259,9 @@ class LineBatch:
             self._policy_rngs[e] = policy
             self.siro_draws[e] = policy.integers(0, 2**32, size=SIRO_ROOM, dtype=np.uint32)
         if self.breaks:
-            self._failure_rngs[e] = streams[FIRST_ROBOT:]
-            for r, rng in enumerate(streams[FIRST_ROBOT:]):
+            robots = streams[FIRST_ROBOT : FIRST_ROBOT + self.n_robots]
+            self._failure_rngs[e] = robots
+            for r, rng in enumerate(robots):
                 if self.ip0[r, L.FAILMODE] == L.EXPONENTIAL:
                     self.exps[e, r] = rng.standard_exponential(EXP_ROOM)
 
@@ -309,10 +320,10 @@ class LineBatch:
 
     def _build_structs(self) -> Structs:
         return (
-            Params(self.fp, self.ip, self.gp, self.gi),
+            Params(self.fp, self.ip, self.gp, self.gi, self.kp),
             V.EnvParams(self.ef, self.ei, self.spans, self.ip0),
             State(*(getattr(self, name) for name in State._fields)),
-            Streams(self.fed, self.ys, self.siro_draws, self.exps),
+            Streams(self.fed, self.ys, self.siro_draws, self.exps, self.kind),
             Records(*(getattr(self, name) for name in Records._fields)),
             Scratch(self.c_i, self.c_f),
             V.Episodes(*(getattr(self, name) for name in V.Episodes._fields)),
