@@ -22,6 +22,12 @@ Parts a robot did not pick are split into ``passed_on`` (left its workspace unpi
 picked by a robot downstream) and ``lost`` (left its workspace unpicked and reached the return
 conveyor: the line's ``parts_missed``).
 
+On a line with kinds of part (feeder.kinds), a kind no robot picks passes on by design: its
+parts are counted apart (``parts_passed_by_design``) and left out of G and of every figure
+built on the parts presented. ``kinds`` gives each kind's figures (presented, picked, lost,
+gripping rate, value) and ``value_rate`` the % of the value presented (every kind's) that was
+gripped. Lines of one kind have none of these keys (their KPIs are as before kinds existed).
+
 ``welch_gripping_rate`` is G over time for Welch's warm-up plot: the feeding period, warm-up
 included, cut into ``WELCH_BINS`` bins by time fed (NaN for a bin no part was fed in).
 """
@@ -31,7 +37,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -63,6 +69,25 @@ class PartRecords:
     decided_at: np.ndarray  # float
     placed_at: np.ndarray  # float
     picked: np.ndarray  # bool
+    kind: np.ndarray | None = None  # int kind codes (None: one kind)
+    counted: np.ndarray | None = None  # bool: in G's scope (None: every part)
+
+
+@dataclass(frozen=True)
+class KindTable:
+    """The kinds of part of a line (:meth:`twin.plan.LinePlan.kind_table`), by code."""
+
+    names: tuple[str, ...]
+    values: tuple[float, ...]
+    targeted: tuple[bool, ...]  # some robot picks it
+
+    def with_records(self, parts: PartRecords, codes: np.ndarray) -> PartRecords:
+        """``parts`` with their kind codes, and the parts G counts (targeted kinds) when
+        some kind is not targeted."""
+        counted = None
+        if not all(self.targeted):
+            counted = np.asarray(self.targeted, dtype=bool)[codes]
+        return replace(parts, kind=codes, counted=counted)
 
 
 @dataclass(frozen=True)
@@ -186,6 +211,8 @@ class KpiTally:
 def tally(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) -> KpiTally:
     """:class:`KpiTally` of the records (numpy) for window [w0, w1) (w1: the duration)."""
     win = (parts.fed_at >= w0) & (parts.fed_at < w1)
+    if parts.counted is not None:  # kinds no robot picks pass on by design: not counted
+        win &= parts.counted
     is_picked = parts.picked[win]
     robot_of = np.where(parts.picked, parts.robot, -1)[win]
     cycles = (parts.placed_at[win] - parts.decided_at[win])[is_picked]
@@ -195,6 +222,8 @@ def tally(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) 
     noops = (spans.state == SPAN_STATES.index("noop")) & (start >= w0) & (start < w1)
     fed = parts.fed_at
     inside = (fed >= 0) & (fed < w1)
+    if parts.counted is not None:
+        inside &= parts.counted
     k = np.minimum((fed[inside] / w1 * WELCH_BINS).astype(np.int64), WELCH_BINS - 1)
     return KpiTally(
         presented=int(win.sum()),
@@ -219,10 +248,53 @@ def compute_kpis(
     specs: Sequence[RobotSpec],
     warmup: float,
     duration: float,
+    kinds: KindTable | None = None,
 ) -> dict[str, Any]:
-    """The KPI dictionary of one run (see the module docstring for definitions)."""
+    """The KPI dictionary of one run (see the module docstring for definitions); with
+    ``kinds`` (a line with feeder.kinds; ``parts`` carry their kind codes) the per-kind
+    figures too."""
     sums = tally(parts, spans, len(specs), warmup, duration)
-    return tally_kpis(sums, parts.rule_names, specs, warmup, duration)
+    kpis = tally_kpis(sums, parts.rule_names, specs, warmup, duration)
+    if kinds is not None:
+        kpis.update(kind_kpis(kinds, parts, warmup, duration))
+    return kpis
+
+
+def kind_kpis(kinds: KindTable, parts: PartRecords, w0: float, w1: float) -> dict[str, Any]:
+    """``value_rate``, ``parts_passed_by_design`` and ``kinds``: each kind's figures over the
+    window (see the module docstring)."""
+    assert parts.kind is not None, "per-kind KPIs need the parts' kind codes"
+    win = (parts.fed_at >= w0) & (parts.fed_at < w1)
+    codes = parts.kind[win]
+    picked = parts.picked[win]
+    presented = np.bincount(codes, minlength=len(kinds.names))
+    gripped = np.bincount(codes[picked], minlength=len(kinds.names))
+    out: dict[str, dict[str, Any]] = {}
+    for c, name in enumerate(kinds.names):
+        n, got, value, targeted = (
+            int(presented[c]),
+            int(gripped[c]),
+            kinds.values[c],
+            kinds.targeted[c],
+        )
+        out[name] = {
+            "targeted": targeted,
+            "value": value,
+            "parts_presented": n,
+            "parts_picked": got,
+            "parts_lost": n - got if targeted else 0,
+            "parts_passed_by_design": 0 if targeted else n,
+            "gripping_rate": 100.0 * got / n if n and targeted else math.nan,
+            "value_presented": value * n,
+            "value_picked": value * got,
+        }
+    worth = math.fsum(k["value_presented"] for k in out.values())
+    taken = math.fsum(k["value_picked"] for k in out.values())
+    return {
+        "value_rate": 100.0 * taken / worth if worth > 0 else math.nan,
+        "parts_passed_by_design": sum(k["parts_passed_by_design"] for k in out.values()),
+        "kinds": out,
+    }
 
 
 def tally_kpis(
@@ -250,7 +322,10 @@ def tally_kpis(
     cycles = sums.cycles
     lost = presented - picked
     starts = sums.robot_starts.tolist()
-    later = np.cumsum(picks[::-1])[::-1].tolist()[1:] + [0]  # picks downstream of robot i
+    later = [  # picks by the robots downstream of robot i (their x-range starts past its end)
+        int(sum(int(picks[j]) for j in range(n) if specs[j].workspace[0] >= specs[i].workspace[1]))
+        for i in range(n)
+    ]
     robots = []
     for i in range(n):
         mine = sums.robot_cycles[starts[i] : starts[i + 1]]
@@ -326,9 +401,15 @@ def table_kpis(
     specs: Sequence[RobotSpec],
     warmup: float,
     duration: float,
+    kinds: KindTable | None = None,
 ) -> dict[str, Any]:
     """:func:`compute_kpis` of record tables (``Recorder.parts_frame`` / ``spans_frame``)."""
-    return compute_kpis(*table_records(parts, spans), specs, warmup, duration)
+    part_records, span_records = table_records(parts, spans)
+    if kinds is not None:
+        code = {name: c for c, name in enumerate(kinds.names)}
+        codes = np.array([code[k] for k in parts["kind"]], dtype=np.int64)
+        part_records = kinds.with_records(part_records, codes)
+    return compute_kpis(part_records, span_records, specs, warmup, duration, kinds)
 
 
 def flat_kpis(kpis: dict[str, Any]) -> dict[str, Any]:
@@ -342,4 +423,7 @@ def flat_kpis(kpis: dict[str, Any]) -> dict[str, Any]:
                 row[f"r{r['robot']}_{k}"] = v
     for rule, count in kpis["decisions"].items():
         row[f"rule_{rule}"] = count
+    for name, figures in kpis.get("kinds", {}).items():
+        for k, v in figures.items():
+            row[f"kind_{name}_{k}"] = v
     return row

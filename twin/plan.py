@@ -25,6 +25,7 @@ import numpy as np
 from pnp_twin.twin.decision import RobotSpec
 from pnp_twin.twin.gateway import SCHEMES
 from pnp_twin.twin.geometry import bin_position, intercept_quad, mount_position
+from pnp_twin.twin.kpis import KindTable
 from pnp_twin.twin.scenario import Scenario
 
 RULES = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT", "VAL")
@@ -196,6 +197,12 @@ class LinePlan:
             return np.zeros(n, dtype=np.int64)
         code = {name: c for c, name in enumerate(self.kinds)}
         return np.fromiter((code[k] for k in kinds), np.int64, n)
+
+    def kind_table(self) -> KindTable | None:
+        """The kinds of part as the KPIs read them; None on a line without feeder.kinds."""
+        if not self.scenario.feeder.kinds:
+            return None
+        return KindTable(self.kinds, self.values, self.targeted)
 
     def new_shape(self) -> str | None:
         """The first setting beyond the paper's line shape (one kind, one side, no reach

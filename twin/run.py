@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from pnp_twin.twin.decision import Policy
 from pnp_twin.twin.kpis import compute_kpis, recorder_records
 from pnp_twin.twin.line import Line
@@ -37,8 +39,11 @@ def simulate(
     rec = line.recorder
     rec.close_open_spans(line.now)  # idempotent; for Line subclasses with their own run()
     belt, last_end = line.belt, line.last_end
-    records = recorder_records(rec, line.belt.fed)
-    kpis = compute_kpis(*records, line.specs, scenario.warmup, line.duration)
+    parts, spans = recorder_records(rec, line.belt.fed)
+    kinds = line.plan.kind_table()
+    if kinds is not None:
+        parts = kinds.with_records(parts, np.asarray(belt.kind_code, dtype=np.int64))
+    kpis = compute_kpis(parts, spans, line.specs, scenario.warmup, line.duration, kinds)
     builders = {
         "parts": lambda: rec.parts_frame(belt, last_end),
         "spans": rec.spans_frame,

@@ -172,6 +172,15 @@ def run(
     out = stdout_console()
     out.print(kpi_table(result))
     out.print(robot_table(result.kpis))
+    if "kinds" in result.kpis:
+        out.print(kind_table(result.kpis))
+        untargeted = [n for n, f in result.kpis["kinds"].items() if not f["targeted"]]
+        if untargeted:
+            note(
+                f"no robot picks {', '.join(untargeted)}: "
+                f"{result.kpis['parts_passed_by_design']} parts passed on by design, "
+                "left out of G"
+            )
     note(
         f"fed {scn.duration:g} s, drained to t = {result.sim_time:,.0f} s, "
         f"in {result.wall_time:.2f} s wall time ({result.meta.get('engine', 'simpy')} engine)"
@@ -214,6 +223,8 @@ def kpi_table(result: RunResult) -> Table:
     t.add_column("value", justify="right")
     g = k["gripping_rate"]
     t.add_row("Gripping rate G", "n/a" if not math.isfinite(g) else f"{g:.2f} %")
+    if "value_rate" in k:
+        t.add_row("Value rate (of value presented)", _num(k["value_rate"], ".2f", " %"))
     t.add_row(
         "Parts presented / picked / lost",
         f"{k['parts_presented']} / {k['parts_picked']} / {k['parts_missed']}",
@@ -260,6 +271,32 @@ def robot_table(kpis: dict[str, Any]) -> Table:
             _share(r["down"]),
             str(r["passed_on"]),
             str(r["lost"]),
+        )
+    return t
+
+
+def kind_table(kpis: dict[str, Any]) -> Table:
+    """One row per kind of part: presented, picked, lost, gripping rate, value."""
+    t = Table(
+        title="Kinds of part (value per part; G per kind in %)",
+        box=box.SIMPLE_HEAVY,
+        pad_edge=False,
+        collapse_padding=True,
+        caption="passed on by design = a kind no robot picks: left out of G",
+    )
+    for col in ("kind", "value", "presented", "picked", "lost", "by design", "G", "value %"):
+        t.add_column(col, justify="left" if col == "kind" else "right")
+    for name, f in kpis["kinds"].items():
+        worth = f["value_presented"]
+        t.add_row(
+            name,
+            f"{f['value']:g}",
+            str(f["parts_presented"]),
+            str(f["parts_picked"]),
+            str(f["parts_lost"]),
+            str(f["parts_passed_by_design"]),
+            _num(f["gripping_rate"], ".1f"),
+            _num(100.0 * f["value_picked"] / worth if worth > 0 else math.nan, ".1f"),
         )
     return t
 

@@ -43,7 +43,7 @@ from pnp_twin.twin.fast.kernel import (
 from pnp_twin.twin.fast.pool import take
 from pnp_twin.twin.fast.structs import Params, Records, Scratch, State, Streams
 from pnp_twin.twin.feeder import Feeder
-from pnp_twin.twin.kpis import SPAN_STATES, PartRecords, SpanRecords, tally_kpis
+from pnp_twin.twin.kpis import SPAN_STATES, PartRecords, SpanRecords, compute_kpis, tally_kpis
 from pnp_twin.twin.plan import ARRIVALS, FIRST_ROBOT, LATERAL, POLICY, LinePlan
 from pnp_twin.twin.records import Recorder
 from pnp_twin.twin.scenario import Scenario
@@ -423,6 +423,9 @@ class FastLine:
             placed_at=self.rec_f[:, 2],
             picked=~np.isnan(self.rec_f[:, 1]),
         )
+        kinds = self.plan.kind_table()
+        if kinds is not None:
+            parts = kinds.with_records(parts, self.kind_code)
         spans = SpanRecords(
             robot=self.sp_i[:k, 0],
             state=codes[self.sp_i[:k, 1]],
@@ -436,6 +439,9 @@ class FastLine:
         :meth:`kpi_records`, with the sums taken in one compiled pass over the arrays."""
         from pnp_twin.twin.fast.tally import tally
 
+        kinds = self.plan.kind_table()
+        if kinds is not None:  # a line with kinds: the numpy sums, which know them
+            return compute_kpis(*self.kpi_records(), self.specs, warmup, self.duration, kinds)
         names = (*L.RULE_NAMES, *self.extra_rules)
         n_spans, n = int(self.gs[L.NSPANS]), len(self.specs)
         sums = tally(self.fed, self.records, n_spans, n, len(names), warmup, self.duration)
