@@ -54,11 +54,11 @@ class Robot:
 
     A candidate is an unclaimed part of a kind the robot picks whose interception point lies
     in [a, b] and, with a reach, within ``reach`` of the robot's base. Where robots face each
-    other (their x-ranges overlap), a part that several *idle* robots (not approaching, not
-    carrying, not down) could take is a candidate only of the one that intercepts it
-    soonest, an exact tie going to the robot first in the run's random priority order: so
-    who takes a contested part does not depend on how the robots are numbered or in which
-    order robots free at the same instant decide.
+    other (their x-ranges overlap), a part that several *idle* robots (not approaching a part
+    claimed before this instant, not carrying, not down) could take is a candidate only of
+    the one that intercepts it soonest, an exact tie going to the robot first in the run's
+    random priority order: so who takes a contested part does not depend on how the robots
+    are numbered or in which order robots free at the same instant decide.
     """
 
     def __init__(
@@ -109,6 +109,7 @@ class Robot:
         self.down = False
         self.approach_until = -math.inf  # end of the current approach leg, for t_any
         self.claimed = -1
+        self.claimed_at = -math.inf  # decision time of the current claim
         self.gateway: Gateway | None = None
         self.process: simpy.Process | None = None
 
@@ -189,9 +190,14 @@ class Robot:
 
     def _yields_to(self, kind: int, x: float, y: float, t: float) -> bool:
         """Whether an idle rival would intercept this part sooner (or as soon, and comes
-        first in the priority order): then it is the rival's, not a candidate here."""
+        first in the priority order): then it is the rival's, not a candidate here.
+
+        A rival that claimed a part at this very instant still counts as idle (its tool has
+        not moved): so robots free at one instant see the same rivals whatever order they
+        decide in."""
+        now = self.env.now
         for other in self.rivals:
-            if other.busy or other.down:
+            if other.down or (other.busy and (other.claimed < 0 or other.claimed_at < now)):
                 continue
             t_other = other.intercept(x, y)
             if not other.can_take(kind, x, y, t_other):
@@ -255,6 +261,7 @@ class Robot:
             tx, ty = d.xs[k] + v * t, d.ys[k]
             belt.claim(part, me, t0 + t)
             self.claimed = part
+            self.claimed_at = t0
             self.busy = True
             self.approach_until = t0 + t
             try:

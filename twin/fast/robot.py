@@ -187,15 +187,17 @@ def _can_take(p, q, kind, x, y, t):
 
 
 @compiled()
-def _yields_to(p, s, r, kind, x, y, t):
+def _yields_to(p, s, r, kind, x, y, t, now):
     """Robot._yields_to: an idle facing robot intercepts this part sooner (or as soon, and
-    comes first in the priority order)."""
+    comes first in the priority order); one that claimed at ``now`` still counts as idle."""
     fp, ist = p.fp, s.ist
     for q in range(ist.shape[0]):
         if q == r or not (fp[q, BA] < fp[r, BB] and fp[r, BA] < fp[q, BB]):
             continue  # not a rival: the x-ranges do not overlap
-        if ist[q, CLAIMED] >= 0 or ist[q, PC] == PC_PLACE or ist[q, DOWN]:
-            continue  # busy (approaching, carrying) or down: not idle
+        if ist[q, DOWN] or ist[q, PC] == PC_PLACE:
+            continue  # down, or carrying a part: not idle
+        if ist[q, CLAIMED] >= 0 and s.fs[q, T0] < now:
+            continue  # approaching a part it claimed before this instant
         t_q = _intercept(p, s, q, x, y)
         if not _can_take(p, q, kind, x, y, t_q):
             continue
@@ -220,7 +222,7 @@ def _filtered_candidates(p, s, st, sc, r, now, lo, hi):
         t = _intercept(p, s, r, x, y)
         if not _can_take(p, r, kind, x, y, t):
             continue
-        if _yields_to(p, s, r, kind, x, y, t):
+        if _yields_to(p, s, r, kind, x, y, t, now):
             continue
         c_i[n] = i
         c_f[n, 0] = x
