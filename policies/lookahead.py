@@ -52,6 +52,7 @@ from pnp_twin.policies.base import RuleMix
 from pnp_twin.policies.rules import RULES
 from pnp_twin.twin.decision import Decision, RobotSpec
 from pnp_twin.twin.errors import UserError, excerpt
+from pnp_twin.twin.plan import LinePlan
 from pnp_twin.twin.scenario import Scenario
 
 if TYPE_CHECKING:
@@ -221,6 +222,13 @@ class Lookahead:
 
     def bind_run(self, scenario: Scenario, seed: int, duration: float) -> None:
         """The run this controller decides for (called by the line after ``reset``)."""
+        shape = LinePlan.of(scenario, seed, duration).new_shape()
+        if shape is not None:
+            raise LookaheadError(
+                f"policy: lookahead: {shape} is set on {scenario.name}; the lookahead's "
+                "rollouts run lines of one kind of part with every robot on the upper side and "
+                "no reach limit; use a rule (SPT, VAL, ...) or a mix for this line"
+            )
         self._run = (scenario, int(seed), float(duration))
         self._copy = None
 

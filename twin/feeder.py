@@ -50,6 +50,7 @@ class Feeder:
         self.lateral_rng = lateral_rng
         self.source_dir = source_dir
         self.kinds_rng = kinds_rng
+        self.codes: np.ndarray | None = None  # the last drawn stream's kind codes
 
     def stream(self, duration: float) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
         """(fed_at, y, kind or None) of every part fed in [0, duration), time-ordered."""
@@ -80,8 +81,8 @@ class Feeder:
         assert self.kinds_rng is not None, "a line with feeder.kinds needs the kinds' stream"
         edges = np.cumsum([k.share for k in kinds])
         codes = np.searchsorted(edges / edges[-1], self.kinds_rng.random(n), side="right")
-        names = [k.name for k in kinds]
-        return [names[c] for c in np.minimum(codes, len(names) - 1).tolist()]
+        self.codes = np.minimum(codes, len(kinds) - 1)  # the kind codes, for the engines
+        return np.array([k.name for k in kinds], dtype=object)[self.codes].tolist()
 
     def feeding(self, env: simpy.Environment, belt: Belt) -> Generator[simpy.Event, Any, None]:
         """The feeder's process: put each part of the belt's stream on it at its arrival.

@@ -196,7 +196,7 @@ class LinePlan:
         if kinds is None or len(self.kinds) == 1:
             return np.zeros(n, dtype=np.int64)
         code = {name: c for c, name in enumerate(self.kinds)}
-        return np.fromiter((code[k] for k in kinds), np.int64, n)
+        return np.array(list(map(code.__getitem__, kinds)), dtype=np.int64)
 
     def kind_table(self) -> KindTable | None:
         """The kinds of part as the KPIs read them; None on a line without feeder.kinds."""

@@ -174,12 +174,14 @@ class Robot:
             return intercept_time(dx, dy, spec.belt_speed, spec.arm_speed, spec.acceleration)
         return intercept_now(dx, dy, spec.belt_speed, self._quad)
 
-    def can_take(self, kind: int, x: float, y: float, t: float) -> bool:
-        """Whether a part of ``kind``, now at (x, y) and intercepted after ``t`` s, may be
-        this robot's: a kind it picks, met inside [a, b] and within its reach."""
+    def picks(self, kind: int) -> bool:
+        """Whether this robot picks parts of kind code ``kind``."""
+        return not self.spec.picks or self.spec.picks[kind]
+
+    def can_take(self, x: float, y: float, t: float) -> bool:
+        """Whether a part now at (x, y), intercepted after ``t`` s, may be this robot's: met
+        inside [a, b] and within its reach (its kind is asked first: :meth:`picks`)."""
         spec = self.spec
-        if spec.picks and not spec.picks[kind]:
-            return False
         xi = x + spec.belt_speed * t
         if not self.a <= xi <= self.b:
             return False
@@ -199,8 +201,10 @@ class Robot:
         for other in self.rivals:
             if other.down or (other.busy and (other.claimed < 0 or other.claimed_at < now)):
                 continue
+            if not other.picks(kind):
+                continue
             t_other = other.intercept(x, y)
-            if not other.can_take(kind, x, y, t_other):
+            if not other.can_take(x, y, t_other):
                 continue
             if t_other < t or (t_other == t and other.priority < self.priority):
                 return True
@@ -218,9 +222,12 @@ class Robot:
         for i in belt.span(now, self.x_lo, self.b):
             if belt.holder[i] != FREE:
                 continue
-            x, y, kind = v * now - v * belt.fed[i], belt.y[i], belt.kind_code[i]
+            kind = belt.kind_code[i]
+            if not self.picks(kind):
+                continue
+            x, y = v * now - v * belt.fed[i], belt.y[i]
             t = self.intercept(x, y)
-            if not self.can_take(kind, x, y, t):
+            if not self.can_take(x, y, t):
                 continue
             if self.rivals and self._yields_to(kind, x, y, t):
                 continue

@@ -140,7 +140,8 @@ class FastLine:
         self.fed, self.y, self.kind = feeder.stream(self.duration)
         self.fed = np.ascontiguousarray(self.fed, dtype=np.float64)
         self.y = np.ascontiguousarray(self.y, dtype=np.float64)
-        self.kind_code = plan.kind_codes(self.kind, len(self.fed))
+        drawn = feeder.codes  # drawn kinds come with their codes; a trace's are looked up
+        self.kind_code = plan.kind_codes(self.kind, len(self.fed)) if drawn is None else drawn
         self.specs = plan.specs
         self.external: Policy | None = None
         self._seeds = seeds

@@ -170,11 +170,10 @@ def _intercept(p, s, q, x, y):
 
 
 @compiled(inline=True)
-def _can_take(p, q, kind, x, y, t):
-    """Robot.can_take: a kind robot q picks, met inside its [a, b] and within its reach."""
+def _can_take(p, q, x, y, t):
+    """Robot.can_take: met inside robot q's [a, b] and within its reach (its kind checked
+    before, so no interception time is computed for a kind it does not pick)."""
     fp = p.fp
-    if p.kp[q, kind, KPICKS] == 0.0:
-        return False
     xi = x + p.gp[V] * t
     if not (fp[q, BA] <= xi and xi <= fp[q, BB]):
         return False
@@ -198,8 +197,10 @@ def _yields_to(p, s, r, kind, x, y, t, now):
             continue  # down, or carrying a part: not idle
         if ist[q, CLAIMED] >= 0 and s.fs[q, T0] < now:
             continue  # approaching a part it claimed before this instant
+        if p.kp[q, kind, KPICKS] == 0.0:
+            continue
         t_q = _intercept(p, s, q, x, y)
-        if not _can_take(p, q, kind, x, y, t_q):
+        if not _can_take(p, q, x, y, t_q):
             continue
         if t_q < t or (t_q == t and p.ip[q, PRIO] < p.ip[r, PRIO]):
             return True
@@ -216,11 +217,13 @@ def _filtered_candidates(p, s, st, sc, r, now, lo, hi):
     for i in range(lo, hi):
         if holder[i] != FREE:
             continue
+        kind = st.kind[i]
+        if p.kp[r, kind, KPICKS] == 0.0:
+            continue
         x = v * now - v * fed[i]
         y = ys[i]
-        kind = st.kind[i]
         t = _intercept(p, s, r, x, y)
-        if not _can_take(p, r, kind, x, y, t):
+        if not _can_take(p, r, x, y, t):
             continue
         if _yields_to(p, s, r, kind, x, y, t, now):
             continue
