@@ -44,6 +44,9 @@ SHIPPED = (
     "paper_27",
     "sizing_example",
     "rule_mix",
+    "two_sided",
+    "delta_over_belt",
+    "waste_sorting",
 )
 SHORT = {"duration": 60.0, "warmup": 10.0}
 SHORT_SEED = 1

@@ -252,3 +252,19 @@ def test_facing_robots_share_x_ranges_laid_out_per_side() -> None:
     plan = LinePlan.of(sc)
     assert plan.rivals and plan.targeted == (True, True, False)
     assert sorted(r.priority for r in plan.robots) == list(range(6))
+
+
+def test_the_lookahead_and_the_vector_envs_refuse_new_shapes_in_one_line() -> None:
+    from typer.testing import CliRunner
+
+    from pnp_twin.cli import app
+
+    args = ["run", "two_sided", "--policy", "lookahead", "--set", "duration=10"]
+    res = CliRunner().invoke(app, [*args, "--set", "warmup=1"])
+    assert res.exit_code == 2
+    assert "lookahead: robots.side is set on two_sided" in res.output
+    assert len(res.output.strip().splitlines()) == 1
+    from pnp_twin.learning.vector.batch import LineBatch
+
+    with pytest.raises(ValueError, match="feeder.kinds: the vector environments run lines"):
+        LineBatch(short("waste_sorting"), 2, 1, {}, 0, siro=False)
