@@ -99,7 +99,8 @@ class Robot:
         self.busy = False  # approaching, gripping or carrying a part (not idle)
         self.rivals: list[Robot] = []  # robots whose x-range overlaps this one's (the line)
         # candidates pass more tests than the x-range (kinds, reach, rivals): the full loop
-        self.filtered = spec.reach > 0 or not all(spec.picks)
+        # (and a line of several kinds: the full loop reports each candidate's kind)
+        self.filtered = spec.reach > 0 or bool(spec.picks)
         self.x_lo = plan.x_lo  # parts upstream of it cannot be met inside [a, b]
         self._quad = plan.quad
         self.failures = failures

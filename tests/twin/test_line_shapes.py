@@ -268,3 +268,44 @@ def test_the_lookahead_and_the_vector_envs_refuse_new_shapes_in_one_line() -> No
 
     with pytest.raises(ValueError, match="feeder.kinds: the vector environments run lines"):
         LineBatch(short("waste_sorting"), 2, 1, {}, 0, siro=False)
+
+
+KINDS = [
+    {"name": "a", "share": 0.5, "value": 1.0},
+    {"name": "b", "share": 0.3, "value": 2.0, "pick_time": 0.2},
+    {"name": "c", "share": 0.2, "value": 3.0, "place_time": 0.15},
+]
+VARIANTS = {  # paper_baseline with kinds every robot picks: one side, or robots 2 and 4 facing
+    "one_side": {"feeder.kinds": KINDS},
+    "facing": {
+        "feeder.kinds": KINDS,
+        "robots.overrides": [{"robot": 2, "side": "lower"}, {"robot": 4, "side": "lower"}],
+    },
+}
+
+
+@pytest.mark.parametrize("scheme", ["t_continue", "t_all", "t_any"])
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+@pytest.mark.parametrize("rule", ["SPT", "VAL", "SD"])
+def test_kinds_every_robot_picks_are_identical_and_timed_per_kind(
+    variant: str, rule: str, scheme: str
+) -> None:
+    """No kind or reach to test: the decisions still carry each part's kind (its grip and
+    release times, its value), on both engines alike."""
+    sc = short("paper_baseline", termination=scheme, **VARIANTS[variant])
+    result = assert_same(sc, rule)
+    picked = result.parts[result.parts["outcome"] == "picked"]
+    specs, v = robot_specs(sc), sc.belt.speed
+    grip = {"a": 0.003694, "b": 0.2, "c": 0.003694}  # the robots', or the kind's own
+    release = {"a": 0.003694, "b": 0.003694, "c": 0.15}
+    assert set(picked["kind"]) == {"a", "b", "c"}
+    for robot, kind, fed, y, at, done in picked[
+        ["robot", "kind", "fed_at", "y", "picked_at", "placed_at"]
+    ].itertuples(index=False):
+        spec = specs[int(robot) - 1]
+        x = v * (at - fed)  # where it was gripped
+        transfer = math.hypot(spec.bin[0] - x, spec.bin[1] - y) / spec.arm_speed
+        assert done - at == pytest.approx(grip[kind] + transfer + release[kind], abs=1e-9)
+    if rule == "VAL":
+        first = result.parts.groupby("kind")["outcome"].apply(lambda o: (o == "picked").mean())
+        assert first["c"] >= first["b"] >= first["a"]  # the valuable kinds are taken first

@@ -44,7 +44,7 @@ from pnp_twin.twin.fast.pool import take
 from pnp_twin.twin.fast.structs import Params, Records, Scratch, State, Streams
 from pnp_twin.twin.feeder import Feeder
 from pnp_twin.twin.kpis import SPAN_STATES, PartRecords, SpanRecords, compute_kpis, tally_kpis
-from pnp_twin.twin.plan import ARRIVALS, FIRST_ROBOT, LATERAL, POLICY, LinePlan
+from pnp_twin.twin.plan import ARRIVALS, FIRST_ROBOT, LATERAL, POLICY, LinePlan, overlap
 from pnp_twin.twin.records import Recorder
 from pnp_twin.twin.scenario import Scenario
 
@@ -85,7 +85,8 @@ def _robot_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         fp[r, L.MOUNTX], fp[r, L.MOUNTY] = spec.mount
         fp[r, L.BINSIDE] = spec.bin_side
         ip[r, L.PRIO] = rp.priority
-        ip[r, L.FILTER] = int(spec.reach > 0 or not all(spec.picks) or plan.rivals)
+        facing = any(overlap(spec, o.spec) for o in plan.robots if o is not rp)
+        ip[r, L.FILTER] = (spec.reach > 0 or not all(spec.picks)) * L.TESTS + facing * L.RIVALS
         for k in range(len(plan.kinds)):
             kp[r, k] = (
                 1.0 if not spec.picks or spec.picks[k] else 0.0,

@@ -14,7 +14,8 @@ N_FP = 18
 # robot int parameters ip[r, .]
 RULE, FAILMODE = range(2)
 PRIO = 2  # rank among facing robots on an exact tie (lower first)
-FILTER = 3  # 1: candidates pass the kind, reach and rival tests too (Robot.filtered)
+FILTER = 3  # bits: TESTS (kinds or reach to test, Robot.filtered), RIVALS (facing robots)
+TESTS, RIVALS = 1, 2
 N_IP = 4
 NOFAIL, EXPONENTIAL, FIXED = range(3)
 # per robot and kind parameters kp[r, kind, .]

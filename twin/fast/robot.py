@@ -63,6 +63,7 @@ from pnp_twin.twin.fast.layout import (
     QUAD,
     REACH,
     RELEASES,
+    RIVALS,
     RULE,
     RULENOW,
     SD,
@@ -185,19 +186,32 @@ def _can_take(p, q, x, y, t):
     return True
 
 
+@compiled(inline=True)
+def _idle(p, s, r, q, now):
+    """Robot q is robot r's rival (their x-ranges overlap) and idle (see Robot._yields_to)."""
+    fp, ist = p.fp, s.ist
+    if q == r or not (fp[q, BA] < fp[r, BB] and fp[r, BA] < fp[q, BB]):
+        return False
+    if ist[q, DOWN] or ist[q, PC] == PC_PLACE:
+        return False  # down, or carrying a part
+    return not (ist[q, CLAIMED] >= 0 and s.fs[q, T0] < now)  # approaching an earlier claim
+
+
+@compiled()
+def _idle_rival(p, s, r, now):
+    """Whether some rival of robot r is idle now."""
+    for q in range(s.ist.shape[0]):
+        if _idle(p, s, r, q, now):
+            return True
+    return False
+
+
 @compiled()
 def _yields_to(p, s, r, kind, x, y, t, now):
     """Robot._yields_to: an idle facing robot intercepts this part sooner (or as soon, and
     comes first in the priority order); one that claimed at ``now`` still counts as idle."""
-    fp, ist = p.fp, s.ist
-    for q in range(ist.shape[0]):
-        if q == r or not (fp[q, BA] < fp[r, BB] and fp[r, BA] < fp[q, BB]):
-            continue  # not a rival: the x-ranges do not overlap
-        if ist[q, DOWN] or ist[q, PC] == PC_PLACE:
-            continue  # down, or carrying a part: not idle
-        if ist[q, CLAIMED] >= 0 and s.fs[q, T0] < now:
-            continue  # approaching a part it claimed before this instant
-        if p.kp[q, kind, KPICKS] == 0.0:
+    for q in range(s.ist.shape[0]):
+        if not _idle(p, s, r, q, now) or p.kp[q, kind, KPICKS] == 0.0:
             continue
         t_q = _intercept(p, s, q, x, y)
         if not _can_take(p, q, x, y, t_q):
@@ -257,7 +271,10 @@ def _candidates(p, s, st, sc, r, now):
     hi = _bisect(fed, now - lo_x / v, True, ist[r, HINT_HI])
     ist[r, HINT_LO] = lo
     ist[r, HINT_HI] = hi
-    if p.ip[r, FILTER]:
+    tests = p.ip[r, FILTER]
+    if tests == RIVALS and not _idle_rival(p, s, r, now):
+        tests = 0  # only rivals to test, and none is idle: the plain loop finds the same
+    if tests:
         return _filtered_candidates(p, s, st, sc, r, now, lo, hi)
     n = 0
     for i in range(lo, hi):
