@@ -13,7 +13,9 @@ Compared, each side in its own interpreter with only its own tree on ``PYTHONPAT
 - a short sweep's ``results.csv`` / ``summary.csv`` / ``paired.csv`` / ``best.csv``;
 - the learning interface: observations and rewards of the epoch driver under all three
   termination schemes, one episode's rollout labels, and 300 steps of the compiled vector env;
-- a short training run's ``model.safetensors``.
+- a short training run's ``model.safetensors``;
+- the line shapes of :data:`NEW_SHAPES` (kinds, sides, reach), in the working tree alone: the
+  SimPy engine's ``--events`` and ``--spans`` against the compiled engine's, each scheme.
 
 Each output gets one verdict: ``identical`` (the same bytes); ``same values`` (every value
 both sides have is equal, once robots are numbered alike: only columns or keys were added,
@@ -48,6 +50,9 @@ SCENARIOS = [
     "rule_mix",
 ]
 CHECKPOINTS = ["async", "async_rollout", "single", "sync"]
+NEW_SHAPES = ["two_sided", "delta_over_belt", "waste_sorting"]
+"""Line shapes the earlier checkout may not know (issue 29): compared engine against engine
+in the working tree alone, every termination scheme."""
 # run metadata, not results: timings, dates, versions, and which engine ran (issue 12)
 VOLATILE = (
     "wall_time",
@@ -167,6 +172,22 @@ def outputs(tree: Path, work: Path) -> dict[str, Path]:
     return found
 
 
+def engine_pairs(tree: Path, work: Path) -> tuple[dict[str, Path], dict[str, Path]]:
+    """The records of each new line shape and scheme on the SimPy engine and on the
+    compiled one (two sides of one checkout, compared as two checkouts are)."""
+    sides: tuple[dict[str, Path], dict[str, Path]] = ({}, {})
+    short = ["--set", "duration=120", "--set", "warmup=20"]
+    for name in NEW_SHAPES:
+        for scheme in ("t_continue", "t_all", "t_any"):
+            for engine, found in zip(("simpy", "fast"), sides, strict=True):
+                ev, sp = (work / f"{name}.{scheme}.{engine}.{k}.csv" for k in ("events", "spans"))
+                args = ["run", name, "--engine", engine, "--events", str(ev), "--spans", str(sp)]
+                cli(tree, [*args, "--set", f"termination={scheme}", *short], work)
+                found[f"run {name} {scheme} --events (engines)"] = ev
+                found[f"run {name} {scheme} --spans (engines)"] = sp
+    return sides
+
+
 def flat(value: Any, prefix: str = "") -> dict[str, Any]:
     """A JSON value as {dotted.path: leaf}."""
     if isinstance(value, dict):
@@ -255,6 +276,11 @@ def main() -> None:
                 work.mkdir()
                 sides.append(outputs(tree, work))
             bad = report(*sides)
+            shapes = Path(tmp) / "work_shapes"
+            shapes.mkdir()
+            print("\nnew line shapes, SimPy engine (before) against the compiled one (after):")
+            pairs = engine_pairs(ROOT, shapes)
+            bad += report(*pairs)
             if args.keep:
                 for label in ("before", "after"):
                     shutil.copytree(
@@ -264,10 +290,10 @@ def main() -> None:
             if not given:
                 subprocess.run(["git", "worktree", "remove", "--force", str(before)], cwd=ROOT)
                 shutil.rmtree(before, ignore_errors=True)
-    n = len(sides[0])
+    n = len(sides[0]) + len(pairs[0])
     print(
         f"{n - bad} of {n} outputs have the same values "
-        f"(before = {args.before}, after = working tree)"
+        f"(before = {args.before}, after = working tree; new shapes: engine against engine)"
     )
     sys.exit(0 if bad == 0 else 1)
 

@@ -52,11 +52,11 @@ from pnp_twin.policies.base import RuleMix
 from pnp_twin.policies.rules import RULES
 from pnp_twin.twin.decision import Decision, RobotSpec
 from pnp_twin.twin.errors import UserError, excerpt
-from pnp_twin.twin.plan import LinePlan
 from pnp_twin.twin.scenario import Scenario
 
 if TYPE_CHECKING:
     from pnp_twin.twin.fast.engine import FastLine
+    from pnp_twin.twin.fast.rollouts import Future
 
 log = logging.getLogger(__name__)
 
@@ -222,13 +222,6 @@ class Lookahead:
 
     def bind_run(self, scenario: Scenario, seed: int, duration: float) -> None:
         """The run this controller decides for (called by the line after ``reset``)."""
-        shape = LinePlan.of(scenario, seed, duration).new_shape()
-        if shape is not None:
-            raise LookaheadError(
-                f"policy: lookahead: {shape} is set on {scenario.name}; the lookahead's "
-                "rollouts run lines of one kind of part with every robot on the upper side and "
-                "no reach limit; use a rule (SPT, VAL, ...) or a mix for this line"
-            )
         self._run = (scenario, int(seed), float(duration))
         self._copy = None
 
@@ -362,13 +355,15 @@ class Lookahead:
             out = [a + b for a, b in zip(out, got, strict=True)]
         return out
 
-    def futures(
-        self, line: FastLine, n_kept: int, until: float
-    ) -> list[tuple[np.ndarray, np.ndarray]]:
+    def futures(self, line: FastLine, n_kept: int, until: float) -> list[Future]:
         """The futures of a decision: the first ``n_kept`` parts are the run's own, later
-        ones drawn up to ``until`` (the oracle: the run's own stream, one future)."""
+        ones drawn up to ``until`` (the oracle: the run's own stream, one future); on a
+        line with kinds of part, each with its parts' kind codes."""
+        kinds = self._sampler.kinds is not None
         if self.settings.oracle:
             m = int(np.searchsorted(line.fed, until, "right"))
+            if kinds:
+                return [(line.fed[:m], line.y[:m], line.kind_code[:m])]
             return [(line.fed[:m], line.y[:m])]
         times, ys, counts = self._sampler.draw(
             line.now, until, self.settings.futures, line.fed, line.y, n_kept
@@ -380,7 +375,15 @@ class Lookahead:
         lat[:, :n_kept] = line.y[:n_kept]
         feds[:, n_kept:] = times
         lat[:, n_kept:] = ys
-        return [(feds[m, : n_kept + c], lat[m, : n_kept + c]) for m, c in enumerate(counts)]
+        if not kinds:
+            return [(feds[m, : n_kept + c], lat[m, : n_kept + c]) for m, c in enumerate(counts)]
+        codes = np.empty((k, n_kept + width), dtype=np.int64)
+        codes[:, :n_kept] = line.kind_code[:n_kept]
+        codes[:, n_kept:] = self._sampler.draw_kinds(times.shape, line.kind_code[:n_kept])
+        return [
+            (feds[m, : n_kept + c], lat[m, : n_kept + c], codes[m, : n_kept + c])
+            for m, c in enumerate(counts)
+        ]
 
     def _redraw_failures(self, line: FastLine) -> None:
         """Exponential breakdowns are memoryless: the next failure of a working robot and
@@ -412,6 +415,19 @@ class FutureSampler:
         self.c = scenario.feeder
         self.width = scenario.belt.width
         self.rng = rng
+        kinds = scenario.feeder.kinds  # None: one kind (no draws, as before kinds existed)
+        self.kinds = np.cumsum([k.share for k in kinds]) if kinds else None
+
+    def draw_kinds(self, shape: tuple[int, ...], seen: np.ndarray) -> np.ndarray:
+        """Kind codes of drawn arrivals: by share, as the feeder draws them (a replayed
+        trace: resampled from the kinds seen so far)."""
+        assert self.kinds is not None
+        if self.c.arrival == "trace":
+            if len(seen) == 0:
+                return np.zeros(shape, dtype=np.int64)
+            return self.rng.choice(seen, size=shape)
+        codes = np.searchsorted(self.kinds / self.kinds[-1], self.rng.random(shape), "right")
+        return np.minimum(codes, len(self.kinds) - 1)
 
     def draw(
         self, t: float, until: float, k: int, fed: np.ndarray, ys: np.ndarray, n_kept: int

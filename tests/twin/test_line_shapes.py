@@ -254,20 +254,22 @@ def test_facing_robots_share_x_ranges_laid_out_per_side() -> None:
     assert sorted(r.priority for r in plan.robots) == list(range(6))
 
 
-def test_the_lookahead_and_the_vector_envs_refuse_new_shapes_in_one_line() -> None:
-    from typer.testing import CliRunner
-
-    from pnp_twin.cli import app
-
-    args = ["run", "two_sided", "--policy", "lookahead", "--set", "duration=10"]
-    res = CliRunner().invoke(app, [*args, "--set", "warmup=1"])
-    assert res.exit_code == 2
-    assert "lookahead: robots.side is set on two_sided" in res.output
-    assert len(res.output.strip().splitlines()) == 1
+def test_the_vector_envs_refuse_new_shapes_in_one_line() -> None:
     from pnp_twin.learning.vector.batch import LineBatch
 
     with pytest.raises(ValueError, match="feeder.kinds: the vector environments run lines"):
         LineBatch(short("waste_sorting"), 2, 1, {}, 0, siro=False)
+
+
+@pytest.mark.parametrize("name", ["two_sided", "waste_sorting"])
+def test_the_lookahead_plans_on_the_new_shapes_alike_on_both_engines(name: str) -> None:
+    """Its copy of the run (the compiled engine) follows the line decision by decision (it
+    stops with an error the moment the two differ), and its futures carry kinds."""
+    sc = short(name, duration=15.0, warmup=2.0)
+    a = simulate(sc, make_policy("lookahead:K=4,H=0.5", sc.robots.count), engine="simpy")
+    b = simulate(sc, make_policy("lookahead:K=4,H=0.5", sc.robots.count), engine="fast")
+    pd.testing.assert_frame_equal(a.parts, b.parts, check_exact=True)
+    assert a.kpis["parts_picked"] > 0
 
 
 KINDS = [

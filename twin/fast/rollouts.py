@@ -26,6 +26,9 @@ from pnp_twin.twin.fast.jit import compiled
 from pnp_twin.twin.fast.kernel import choose_external, run_events
 from pnp_twin.twin.fast.structs import Records, Scratch, State, Streams
 
+Future = tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]
+"""A stream to continue on: (fed, y), one kind of part, or (fed, y, kind codes)."""
+
 
 @compiled()
 def _retime_noops(p, s, fed, n, n_kept):
@@ -62,7 +65,8 @@ def _continue_all(p, at, work, st0, futures, picks, rule, stop_at, window, total
     ``at``: the line at its decision, ``work``: where each continuation runs (each a
     (:class:`~twin.fast.structs.State`, :class:`~twin.fast.structs.Records`,
     :class:`~twin.fast.structs.Scratch`)); ``st0``: the line's streams (their pre-drawn
-    draws). ``futures`` = (feds, ys, lens, n_kept, kinds): one future per row of ``feds``/``ys``,
+    draws). ``futures`` = (feds, ys, lens, n_kept, kinds): one future per row of ``feds``/``ys``/
+    ``kinds`` (each part's kind code),
     padded with fed = inf past ``lens[m]`` (the kernel sees no part there); the work arrays
     have one row per padded part. ``window``: (lo, hi), the feed times whose grips count."""
     s0, rec0, sc0 = at
@@ -75,7 +79,7 @@ def _continue_all(p, at, work, st0, futures, picks, rule, stop_at, window, total
     for m in range(feds.shape[0]):
         n = lens[m]
         fed = feds[m]
-        st = Streams(fed, ys[m], st0.siro, st0.exps, kinds)
+        st = Streams(fed, ys[m], st0.siro, st0.exps, kinds[m])
         for j in range(picks.shape[0]):
             _copy(fs0, fs, fs.shape[0], 0.0)
             _copy(ist0, ist, ist.shape[0], 0)
@@ -108,7 +112,7 @@ def _continue_all(p, at, work, st0, futures, picks, rule, stop_at, window, total
 
 def continue_each(
     line: FastLine,
-    futures: Sequence[tuple[np.ndarray, np.ndarray]],
+    futures: Sequence[Future],
     n_kept: int,
     picks: Sequence[int],
     rule: str,
@@ -119,8 +123,9 @@ def continue_each(
     candidate index in ``picks``, when ``line`` (stopped at a decision, ST_CHOOSE) takes that
     candidate and every robot then follows ``rule`` until ``stop_at``.
 
-    ``futures`` are (fed, y) streams whose first ``n_kept`` parts are the line's own. None
-    when a pre-drawn stream ran out (the caller replays those continuations instead).
+    ``futures`` are (fed, y[, kind codes]) streams whose first ``n_kept`` parts are the
+    line's own. None when a pre-drawn stream ran out (the caller replays those
+    continuations instead).
     """
     status, totals, _ = _run(line, futures, n_kept, picks, rule, stop_at, window)
     return None if status else totals.tolist()
@@ -128,7 +133,7 @@ def continue_each(
 
 def continue_one(
     line: FastLine,
-    future: tuple[np.ndarray, np.ndarray],
+    future: Future,
     n_kept: int,
     pick: int,
     rule: str,
@@ -145,7 +150,7 @@ def continue_one(
 
 def _run(
     line: FastLine,
-    futures: Sequence[tuple[np.ndarray, np.ndarray]],
+    futures: Sequence[Future],
     n_kept: int,
     picks: Sequence[int],
     rule: str,
@@ -154,13 +159,17 @@ def _run(
 ) -> tuple[int, np.ndarray, tuple[np.ndarray, np.ndarray]]:
     if int(line.gs[L.STATUS]) != L.ST_CHOOSE:
         raise ValueError("continuations: the line is not stopped at a decision")
-    width = max(len(f) for f, _ in futures)
+    width = max(len(f[0]) for f in futures)
     feds = np.full((len(futures), width), math.inf)
     ys = np.zeros((len(futures), width))
-    for m, (f, y) in enumerate(futures):
+    kinds = np.zeros((len(futures), width), dtype=np.int64)  # (fed, y): one kind, code 0
+    for m, future in enumerate(futures):
+        f = future[0]
         feds[m, : len(f)] = f
-        ys[m, : len(f)] = y
-    lens = np.array([len(f) for f, _ in futures], dtype=np.int64)
+        ys[m, : len(f)] = future[1]
+        if len(future) > 2:  # (fed, y, kind codes)
+            kinds[m, : len(f)] = future[2]
+    lens = np.array([len(f[0]) for f in futures], dtype=np.int64)
     code = L.RULE_NAMES.index(rule)
     p = line.params._replace(ip=line.ip.copy())
     p.ip[:, L.RULE] = code
@@ -180,7 +189,6 @@ def _run(
         Scratch(np.zeros(width + 1, dtype=np.int64), np.zeros((width + 1, 3))),
     )
     at = (line.state, line.records, line.scratch)
-    kinds = np.zeros(width, dtype=np.int64)  # rollouts run lines of one kind
     futures_ = (feds, ys, lens, n_kept, kinds)
     asked = np.asarray(picks, dtype=np.int64)
     status = _continue_all(
