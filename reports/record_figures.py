@@ -5,6 +5,7 @@ Pure functions from the records tables to plotly figures: no files, no simulatio
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,7 +27,8 @@ from pnp_twin.reports.text import (
     at_point,
     point_label,
 )
-from pnp_twin.twin.geometry import bin_position
+from pnp_twin.twin.decision import RobotSpec
+from pnp_twin.twin.plan import robot_specs
 from pnp_twin.twin.scenario import Scenario
 
 
@@ -187,25 +189,47 @@ def timeline_figure(
     return fig
 
 
-def belt_positions(parts: pd.DataFrame, belt_speed: float, t: float) -> dict[str, pd.DataFrame]:
+BY_DESIGN = "passed on by design"  # the belt category of a kind no robot picks
+
+
+def belt_positions(
+    parts: pd.DataFrame, belt_speed: float, t: float, untargeted: Sequence[str] = ()
+) -> dict[str, pd.DataFrame]:
     """Parts on the belt at instant ``t`` (fed, not yet gripped or gone), by category, with
-    their position x = v_b (t - fed_at)."""
+    their position x = v_b (t - fed_at); with ``untargeted`` kinds (no robot picks them)
+    their parts are a fourth category, passed on by design, not "will be missed"."""
     on = parts[(parts["fed_at"] <= t) & (parts["left_at"] > t)].copy()
     on["x"] = belt_speed * (t - on["fed_at"])
     picked = on["outcome"] == "picked"
     claimed = picked & (on["decided_at"] <= t)
+    if not untargeted:
+        return {
+            "to be picked": on[picked & ~claimed],
+            "claimed": on[claimed],
+            "will be missed": on[~picked],
+        }
+    design = on["kind"].isin(list(untargeted))
     return {
         "to be picked": on[picked & ~claimed],
         "claimed": on[claimed],
-        "will be missed": on[~picked],
+        "will be missed": on[~picked & ~design],
+        BY_DESIGN: on[~picked & design],
     }
 
 
-def belt_traces(parts: pd.DataFrame, belt_speed: float, t: float) -> list[go.Scatter]:
-    """The three part markers traces of one instant (always three, maybe empty)."""
+def belt_traces(
+    parts: pd.DataFrame,
+    belt_speed: float,
+    t: float,
+    untargeted: Sequence[str] = (),
+    kinds: bool = False,
+) -> list[go.Scatter]:
+    """The part markers traces of one instant (always the same ones, maybe empty: three,
+    four with ``untargeted`` kinds); ``kinds``: hovering a part names its kind."""
     out = []
-    for cat, d in belt_positions(parts, belt_speed, t).items():
+    for cat, d in belt_positions(parts, belt_speed, t, untargeted).items():
         robot = d["robot"].astype("Float64").fillna(0).astype(int)  # from 1; 0: none
+        data = [d["part"], robot] + ([d["kind"]] if kinds else [])
         out.append(
             go.Scatter(
                 x=d["x"],
@@ -217,9 +241,11 @@ def belt_traces(parts: pd.DataFrame, belt_speed: float, t: float) -> list[go.Sca
                     "size": 9,
                     "line": {"width": 1, "color": "white"},
                 },
-                customdata=np.column_stack([d["part"], robot]),
-                hovertemplate="part %{customdata[0]}<br>x = %{x:.2f} m, y = %{y:.2f} m"
-                + ("<br>robot %{customdata[1]}" if cat != "will be missed" else "")
+                customdata=np.column_stack(data),
+                hovertemplate="part %{customdata[0]}"
+                + (" (%{customdata[2]})" if kinds else "")
+                + "<br>x = %{x:.2f} m, y = %{y:.2f} m"
+                + ("<br>robot %{customdata[1]}" if cat in ("to be picked", "claimed") else "")
                 + "<extra>"
                 + cat
                 + "</extra>",
@@ -263,50 +289,92 @@ def belt_figure(
     seconds: float = 5.0,
     step: float = 0.1,
 ) -> go.Figure:
-    """The belt seen from above at instant ``t``, workspaces and bins drawn, parts coloured
+    """The line seen from above at instant ``t``: the belt, each robot's workspace, side,
+    base, reach and bin (:func:`twin.plan.robot_specs`), and the parts on the belt coloured
     by what happens to them; a play button and slider animate the next ``seconds``."""
     line = recorded_scenario(scenario)
-    belt, layout = line.belt, workspace_layout(line)
-    fig = go.Figure(data=belt_traces(parts, belt.speed, t))
+    belt, specs = line.belt, line_specs(line)
+    untargeted = untargeted_kinds(line.kind_names(), specs)
+    kinds = bool(line.feeder.kinds) and "kind" in parts.columns
+    untargeted = untargeted if kinds else []
+
+    def traces(ti: float) -> list[go.Scatter]:
+        return belt_traces(parts, belt.speed, ti, untargeted, kinds)
+
+    fig = go.Figure(data=traces(t))
     times = np.round(np.arange(t, t + seconds + 1e-9, step), 6)
-    fig.frames = [
-        go.Frame(data=belt_traces(parts, belt.speed, float(ti)), name=f"{ti:.1f}") for ti in times
-    ]
+    fig.frames = [go.Frame(data=traces(float(ti)), name=f"{ti:.1f}") for ti in times]
     fig.update_layout(
-        shapes=belt_shapes(belt.length, belt.width, layout),
+        shapes=belt_shapes(belt.length, belt.width, specs),
+        annotations=robot_labels(specs, line.kind_names()),
         updatemenus=[play_buttons(step)],
         sliders=[time_slider(times)],
     )
-    for i, ((a, b), (_, by)) in enumerate(layout, start=1):
-        fig.add_annotation(
-            x=(a + b) / 2, y=by + BIN_HALF + 0.04, text=f"<b>R{i}</b> bin", showarrow=False
-        )
-    top = max((by for _, (_, by) in layout), default=belt.width) + 0.12
+    low, top = y_range(belt.width, specs)
     fig.update_xaxes(title="Along the belt, x (m)", range=[-0.05, belt.length + 0.05])
-    fig.update_yaxes(title="Across, y (m)", range=[-0.05, top], showgrid=False, zeroline=False)
+    fig.update_yaxes(title="Across, y (m)", range=[low, top], showgrid=False, zeroline=False)
+    what = "dotted boxes: workspaces"
+    if shaped(specs):
+        what += ", bars: each robot's side, dots: bases"
+        what += ", circles: reach" if any(s.reach > 0 for s in specs) else ""
+    height = max(430, round(250 + 160 * (top - low))) if shaped(specs) else 430
+    if any(s.reach > 0 for s in specs):  # metres alike both ways: a reach circle is round
+        fig.update_yaxes(scaleanchor="x", scaleratio=1)
+        span = belt.length + 0.1
+        height = min(MAX_HEIGHT, max(430, round(210 + PLOT_WIDTH * (top - low) / span)))
     fig = style(
         fig,
         "Belt snapshot",
-        f"Parts on the belt at t = {t:.1f} s; press play for the next {seconds:.0f} s · "
-        "dotted boxes: workspaces",
-        height=430,
+        f"Parts on the belt at t = {t:.1f} s; press play for the next {seconds:.0f} s · {what}",
+        height=height,
     )
     fig.update_layout(margin={"b": 110})
     return fig
 
 
 BIN_HALF = 0.045  # m, half the side of a bin's square in the belt figure
+LABEL_GAP = 0.04  # m between a bin and its label
+BASE_PX = 6  # px, radius of a robot's base marker
+PLOT_WIDTH = 960  # px, about the plot area's width on a screen (sizes an equal-aspect figure)
+MAX_HEIGHT = 820  # px: a taller line is drawn with a wider x range instead
 
 
-def belt_shapes(
-    length: float,
-    width: float,
-    layout: list[tuple[tuple[float, float], tuple[float, float]]],
-) -> list[dict[str, Any]]:
-    """The belt, each robot's workspace (dotted) and its bin, as plotly layout shapes."""
+def y_range(width: float, specs: list[RobotSpec]) -> tuple[float, float]:
+    """The belt figure's y range: the belt, every base and every bin with its label (a
+    reach circle may be clipped); a one-sided line's as it always was."""
+    ys = [y for s in specs for y in (s.bin[1], s.mount[1])]
+    low = min([0.0, *ys])
+    top = max([width, *ys])
+    if not shaped(specs):
+        return -0.05, top + 0.12
+    low = low - BIN_HALF - LABEL_GAP - 0.08 if low < 0 else -0.05
+    return low, top + BIN_HALF + LABEL_GAP + 0.07
+
+
+def shaped(specs: list[RobotSpec]) -> bool:
+    """Whether the line has robots off the upper side or with a reach: then the belt figure
+    draws each robot's side bar and base (and reach circle)."""
+    return any(s.side != "upper" or s.reach > 0 for s in specs)
+
+
+def side_y(spec: RobotSpec) -> float:
+    """Where a robot's side bar runs: the belt edge it stands at, or the belt's centre line
+    for a robot over the belt."""
+    if spec.side == "lower":
+        return 0.0
+    if spec.side == "over":
+        return spec.belt_width / 2.0
+    return spec.belt_width
+
+
+def belt_shapes(length: float, width: float, specs: list[RobotSpec]) -> list[dict[str, Any]]:
+    """The belt, and per robot its workspace (dotted), its bin, and (on a line with robots
+    on several sides or with a reach) a bar along its side, its base and its reach circle,
+    as plotly layout shapes named after what they draw ("bin R2", "reach R2", ...)."""
     shapes: list[dict[str, Any]] = [
         {
             "type": "rect",
+            "name": "belt",
             "x0": 0,
             "x1": length,
             "y0": 0,
@@ -316,11 +384,15 @@ def belt_shapes(
             "layer": "below",
         }
     ]
-    for i, ((a, b), (bx, by)) in enumerate(layout):
-        color = PALETTE[i % len(PALETTE)]
+    drawn = shaped(specs)
+    for spec in specs:
+        color = PALETTE[spec.index % len(PALETTE)]
+        tag = f"R{spec.index + 1}"
+        (a, b), (bx, by), (mx, my) = spec.workspace, spec.bin, spec.mount
         shapes.append(
             {
                 "type": "rect",
+                "name": f"workspace {tag}",
                 "x0": a,
                 "x1": b,
                 "y0": 0,
@@ -330,9 +402,58 @@ def belt_shapes(
                 "layer": "below",
             }
         )
+        if drawn:
+            y = side_y(spec)
+            shapes.append(
+                {
+                    "type": "line",
+                    "name": f"side {tag}",
+                    "x0": a,
+                    "x1": b,
+                    "y0": y,
+                    "y1": y,
+                    "line": {
+                        "color": rgba(color, 0.45 if spec.side == "over" else 0.9),
+                        "width": 5,
+                    },
+                    "layer": "below",
+                }
+            )
+        if spec.reach > 0:
+            r = spec.reach
+            shapes.append(
+                {
+                    "type": "circle",
+                    "name": f"reach {tag}",
+                    "x0": mx - r,
+                    "x1": mx + r,
+                    "y0": my - r,
+                    "y1": my + r,
+                    "line": {"color": rgba(color, 0.7), "width": 1.2, "dash": "dash"},
+                    "layer": "below",
+                }
+            )
+        if drawn:
+            shapes.append(
+                {
+                    "type": "circle",
+                    "name": f"base {tag}",
+                    "xsizemode": "pixel",
+                    "ysizemode": "pixel",
+                    "xanchor": mx,
+                    "yanchor": my,
+                    "x0": -BASE_PX,
+                    "x1": BASE_PX,
+                    "y0": -BASE_PX,
+                    "y1": BASE_PX,
+                    "fillcolor": color,
+                    "line": {"color": "white", "width": 1.5},
+                }
+            )
         shapes.append(
             {
                 "type": "rect",
+                "name": f"bin {tag}",
                 "x0": bx - BIN_HALF,
                 "x1": bx + BIN_HALF,
                 "y0": by - BIN_HALF,
@@ -342,6 +463,49 @@ def belt_shapes(
             }
         )
     return shapes
+
+
+def robot_labels(specs: list[RobotSpec], kinds: tuple[str, ...] = ("",)) -> list[dict[str, Any]]:
+    """'R2 bin' beside each bin (outward: above an upper bin, below a lower one) and, where
+    bases are drawn, 'R2' beside each base; hover one for the robot's side, reach and kinds."""
+    drawn = shaped(specs)
+    out: list[dict[str, Any]] = []
+    for spec in specs:
+        i = spec.index + 1
+        (a, b), (bx, by), (mx, my) = spec.workspace, spec.bin, spec.mount
+        picks = [k for k, p in zip(kinds, spec.picks, strict=False) if p and k]
+        info = f"robot {i}, {spec.side} side<br>workspace x = {a:g} to {b:g} m"
+        info += f"<br>base ({mx:.2f}, {my:.2f}) m"
+        info += f", reach {spec.reach:g} m" if spec.reach > 0 else ", no reach limit"
+        info += f"<br>bin ({bx:.2f}, {by:.2f}) m"
+        if picks and len(picks) < len([k for k in kinds if k]):
+            info += "<br>picks " + ", ".join(picks)
+        below = by < 0
+        out.append(
+            {
+                "x": bx,
+                "y": by - BIN_HALF - LABEL_GAP if below else by + BIN_HALF + LABEL_GAP,
+                "text": f"<b>R{i}</b> bin",
+                "showarrow": False,
+                "hovertext": info,
+                "name": f"bin R{i}",
+            }
+        )
+        if drawn:
+            out.append(
+                {
+                    "x": mx,
+                    "y": my,
+                    "xshift": BASE_PX + 4,
+                    "xanchor": "left",
+                    "text": f"<b>R{i}</b>",
+                    "showarrow": False,
+                    "font": {"size": 11, "color": PALETTE[spec.index % len(PALETTE)]},
+                    "hovertext": info,
+                    "name": f"base R{i}",
+                }
+            )
+    return out
 
 
 def play_buttons(step: float) -> dict[str, Any]:
@@ -407,14 +571,18 @@ def recorded_scenario(scenario: dict[str, Any]) -> Scenario:
         return Scenario.model_validate(sections)
 
 
-def workspace_layout(
-    scenario: Scenario | dict[str, Any],
-) -> list[tuple[tuple[float, float], tuple[float, float]]]:
-    """((a, b), bin position) per robot, as the twin lays them out (:mod:`twin.geometry`)."""
+def untargeted_kinds(names: Sequence[str], specs: list[RobotSpec]) -> list[str]:
+    """The kinds of part no robot picks (passed on by design); [] on a line of one kind."""
+    return [
+        name
+        for c, name in enumerate(names)
+        if name and not any(not s.picks or s.picks[c] for s in specs)
+    ]
+
+
+def line_specs(scenario: Scenario | dict[str, Any]) -> list[RobotSpec]:
+    """Each robot's geometry (workspace, side, base, reach, bin) as the twin lays it out:
+    :func:`twin.plan.robot_specs`, never re-derived here."""
     if isinstance(scenario, dict):
         scenario = recorded_scenario(scenario)
-    width = scenario.belt.width
-    return [
-        (space, bin_position(space, width, scenario.robot_param(i, "bin_offset")))
-        for i, space in enumerate(scenario.robots.layout(), start=1)
-    ]
+    return robot_specs(scenario)

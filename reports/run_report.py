@@ -7,6 +7,7 @@ timeline, the belt animation and Welch's warm-up plot of this one replication.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -37,10 +38,29 @@ def run_headline(kpis: Mapping[str, Any]) -> str:
     return out + " (one run: no confidence interval; use a study for one)."
 
 
+def value_text(kpis: Mapping[str, Any]) -> str:
+    """On a line with kinds: the value rate beside G, and which kinds no robot picks, as a
+    paragraph of the answer box; '' on a line of one kind."""
+    if not kinds_of(kpis):
+        return ""
+    text = f"Value rate {fmt_pct(kpis['value_rate'])}: the share of the presented value "
+    text += "(every kind's) that was gripped"
+    n = int(kpis.get("parts_passed_by_design") or 0)
+    if n:
+        text += f"; {n} parts of kinds no robot picks passed on by design, left out of G"
+    text += "."
+    return f"<p>{esc(text)}</p>"
+
+
 def kpi_rows(kpis: Mapping[str, Any]) -> str:
     """The line's KPIs as a two-column table, shares in %."""
     rows = [
         ("Gripping rate G", fmt_pct(kpis["gripping_rate"], 2)),
+        *(
+            [("Value rate", fmt_pct(kpis["value_rate"], 2) + " of the presented value gripped")]
+            if kinds_of(kpis)
+            else []
+        ),
         (
             "Parts presented / picked / lost",
             "{} / {} / {}".format(
@@ -86,6 +106,54 @@ def robot_rows(kpis: Mapping[str, Any]) -> str:
     return table_html(header, rows, left=0)
 
 
+def kinds_of(kpis: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """The per-kind KPIs of a line with kinds of part (``kpis["kinds"]``); {} otherwise."""
+    return dict(kpis.get("kinds") or {})
+
+
+def _pct_or_dash(value: Any) -> str:
+    return fmt_pct(float(value), 1) if value is not None and math.isfinite(value) else "–"
+
+
+def by_design_text(kpis: Mapping[str, Any]) -> str:
+    """Which kinds no robot picks: 'No robot picks residual (253 parts): they pass on to the
+    end of the belt by design and are left out of G.'; every kind picked said so."""
+    kinds = kinds_of(kpis)
+    untargeted = [(k, v) for k, v in kinds.items() if not v.get("targeted", True)]
+    if not untargeted:
+        return "Every kind is picked by some robot: no part passes on by design."
+    names = [f"{k} ({v['parts_passed_by_design']} parts)" for k, v in untargeted]
+    listed = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " or " + names[-1]
+    return (
+        f"No robot picks {listed}: {'it passes' if len(names) == 1 else 'they pass'} on to the "
+        "end of the belt by design, counted apart and left out of the gripping rate G."
+    )
+
+
+def kind_rows(kpis: Mapping[str, Any]) -> str:
+    """One row per kind of part: value, presented, picked, lost, passed on by design, G of
+    the kind and the % of its value gripped ('–' where not defined)."""
+    header = ["Kind", "Value (per part)", "Presented", "Picked", "Lost"]
+    header += ["Passed on by design", "G (%)", "Value gripped (%)"]
+    rows = []
+    for name, k in kinds_of(kpis).items():
+        worth = float(k.get("value_presented") or 0.0)
+        share = 100.0 * float(k.get("value_picked") or 0.0) / worth if worth > 0 else math.nan
+        rows.append(
+            [
+                esc(name) + ("" if k.get("targeted", True) else " (not targeted)"),
+                esc(f"{float(k['value']):g}"),
+                esc(k["parts_presented"]),
+                esc(k["parts_picked"]),
+                esc(k["parts_lost"]),
+                esc(k["parts_passed_by_design"]),
+                esc(_pct_or_dash(k.get("gripping_rate"))),
+                esc(_pct_or_dash(share)),
+            ]
+        )
+    return table_html(header, rows, left=1)
+
+
 SETTINGS = (  # (field, header, unit) of the per-robot settings table
     ("arm_speed", "Arm speed", "m/s"),
     ("pick_time", "Pick time", "s"),
@@ -97,6 +165,14 @@ SETTINGS = (  # (field, header, unit) of the per-robot settings table
 )
 
 
+SHAPE_SETTINGS = (  # (field, header, unit): a column only where some robot overrides it
+    ("side", "Side", ""),
+    ("reach", "Reach", "m"),
+    ("base_offset", "Base offset", "m"),
+    ("kinds", "Kinds", ""),
+)
+
+
 def settings_rows(scenario: Mapping[str, Any]) -> str:
     """Each robot's settings, one row per robot: the shared value, or its override (marked
     ●); empty when the scenario overrides nothing."""
@@ -105,18 +181,23 @@ def settings_rows(scenario: Mapping[str, Any]) -> str:
     if not overrides:
         return ""
     n = int(robots.get("count") or max(overrides))
-    header = ["Robot", *(f"{h} ({u})" for _, h, u in SETTINGS)]
+    shown = SETTINGS + tuple(
+        (key, h, u)
+        for key, h, u in SHAPE_SETTINGS
+        if any(o.get(key) is not None for o in overrides.values())
+    )
+    header = ["Robot", *(f"{h} ({u})" if u else h for _, h, u in shown)]
     rows = []
     for i in range(1, n + 1):
         own = overrides.get(i) or {}
         row = [str(i)]
-        for key, _, _ in SETTINGS:
+        for key, _, _ in shown:
             value = own.get(key)
             if value is not None:
-                row.append(f"<b>{esc(_num(value))}</b> ●")
+                row.append(f"<b>{esc(_num(value) or 'all')}</b> ●")
             else:
                 shared = robots.get(key)
-                row.append(esc(_num(shared)) if shared is not None else "–")
+                row.append(esc(_num(shared) or "all") if shared is not None else "–")
         rows.append(row)
     note = '<p class="note">● overridden for this robot (robots.overrides); the rest are '
     note += "the line's shared values. An MTBF of 0 means no breakdowns.</p>"
@@ -163,13 +244,24 @@ def build_run_page(
             "answer",
             "The answer",
             "",
-            [f'<div class="answer"><p>{esc(run_headline(kpis))}</p></div>'],
+            [f'<div class="answer"><p>{esc(run_headline(kpis))}</p>{value_text(kpis)}</div>'],
         ),
         Section(
             "kpis",
             "KPIs",
             esc(f"Parts fed in [{warmup:g}, {duration:g}) s."),
             [kpi_rows(kpis), robot_rows(kpis)],
+        ),
+        Section(
+            "kinds",
+            "Kinds of part",
+            esc(
+                "Each kind's parts fed in the window; G per kind over its parts, value "
+                "gripped as % of the value presented."
+            ),
+            [f'<div class="answer"><p>{esc(by_design_text(kpis))}</p></div>', kind_rows(kpis)]
+            if kinds_of(kpis)
+            else [],
         ),
         Section(
             "settings",
@@ -207,6 +299,11 @@ def build_run_page(
         lead=lead,
         cards=[
             ("Gripping rate", fmt_pct(kpis["gripping_rate"]), f"policy {kpis.get('policy')}"),
+            *(
+                [("Value rate", fmt_pct(kpis["value_rate"]), "of the value presented")]
+                if kinds_of(kpis)
+                else []
+            ),
             ("Throughput", f"{kpis['throughput']:.2f}", "parts/s"),
             ("Robots", str(n), str(kpis.get("termination") or "")),
             ("Simulated", fmt_seconds(duration), f"of which {warmup:g} s warm-up"),

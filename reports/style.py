@@ -43,7 +43,12 @@ STATE_LABELS = {
 }
 
 
-PART_COLORS = {"to be picked": "#1f4e79", "claimed": "#2a9d8f", "will be missed": "#e63946"}
+PART_COLORS = {
+    "to be picked": "#1f4e79",
+    "claimed": "#2a9d8f",
+    "will be missed": "#e63946",
+    "passed on by design": "#a3acb9",  # a kind no robot picks
+}
 
 
 def policy_colors(policies: Sequence[str]) -> dict[str, str]:
