@@ -425,5 +425,6 @@ def flat_kpis(kpis: dict[str, Any]) -> dict[str, Any]:
         row[f"rule_{rule}"] = count
     for name, figures in kpis.get("kinds", {}).items():
         for k, v in figures.items():
-            row[f"kind_{name}_{k}"] = v
+            if k != "targeted":  # a setting of the line, not a figure of the run
+                row[f"kind_{name}_{k}"] = v
     return row

@@ -84,6 +84,18 @@ ForceOpt = Annotated[
     bool, typer.Option("--force", help="Run even above the work limits (twin.budget).")
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
+KpiOpt = Annotated[
+    str,
+    typer.Option(
+        "--kpi",
+        metavar="gripping_rate|value_rate|gripping_rate:KIND",
+        help="The figure the target is on (headroom: the one compared) and the answer reports: "
+        "gripping_rate (G), "
+        "value_rate (% of the value presented that is gripped; on a line without "
+        "feeder.kinds every part has the same value, so it is G) or gripping_rate:KIND (one "
+        "kind of feeder.kinds that some robot picks).",
+    ),
+]
 
 
 def fail(message: str, code: int = USER_ERROR) -> NoReturn:

@@ -18,6 +18,7 @@ from pnp_twin.cli.app import (
     Engine,
     EngineOpt,
     JsonOpt,
+    KpiOpt,
     NoReportOpt,
     ScenarioArg,
     SetOpt,
@@ -28,6 +29,7 @@ from pnp_twin.cli.console import note
 from pnp_twin.cli.study_folder import check_policies, run_locked
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.design import SUMMARY_FILE, check_design, run_design
+from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json
@@ -71,9 +73,11 @@ def design_cmd(
     engine: EngineOpt = Engine.auto,
     no_report: NoReportOpt = False,
     json_out: JsonOpt = False,
+    kpi: KpiOpt = "gripping_rate",
 ) -> None:
     """The cheapest configuration meeting a target gripping rate with a confidence."""
     sc = load_scenario(scenario, parse_sets(sets or []))
+    figure = parse_kpi(kpi, sc)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; give a folder")
     if not vary and not policy:
@@ -100,6 +104,7 @@ def design_cmd(
             engine.value,
             cmd,
             trials=trials,
+            kpi=figure,
         ),
     )
     if not no_report:

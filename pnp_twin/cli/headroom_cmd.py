@@ -19,9 +19,10 @@ import typer
 from rich import box
 from rich.table import Table
 
-from pnp_twin.cli.app import Engine, EngineOpt, JsonOpt, ScenarioArg, SetOpt, app
+from pnp_twin.cli.app import Engine, EngineOpt, JsonOpt, KpiOpt, ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note, stdout_console
 from pnp_twin.studies.headroom import BOUND_NOTE, Headroom, HeadroomSettings, check_policies
+from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets, with_overrides
 from pnp_twin.twin.output import check_out_folder, dumps_json, removed_if_refused
 
@@ -80,10 +81,12 @@ def headroom(
     ] = 1,
     engine: EngineOpt = Engine.fast,
     as_json: JsonOpt = False,
+    kpi: KpiOpt = "gripping_rate",
 ) -> None:
     """How much could smarter coordination gain? Best rule, best mix, given policies, the
     lookahead controller and its clairvoyant bound, paired by seed."""
     sc = load_scenario(scenario, parse_sets(sets or []))
+    figure = parse_kpi(kpi, sc)
     if duration is not None:
         sc = with_overrides(sc, {"duration": duration, "warmup": min(sc.warmup, duration / 5.0)})
     settings = HeadroomSettings(
@@ -94,6 +97,7 @@ def headroom(
         mix=mix,
         engine=engine.value,
         workers=workers,
+        kpi=figure,
     )
     check_policies(sc, settings)  # a bad name fails before the folder is made
     check_out_folder(out, {"scenario file": find_scenario(scenario)}, OURS)
@@ -150,7 +154,8 @@ def _table(result: Headroom) -> Table:
         f"{s.seed_list[0]}..{s.seed_list[-1]} (paired 95 % CI)",
         box=box.SIMPLE,
     )
-    for col in ("role", "policy", "G %", "95 % CI", "gain", "paired 95 % CI", "ms/decision"):
+    figure = f"{s.kpi.short} %"
+    for col in ("role", "policy", figure, "95 % CI", "gain", "paired 95 % CI", "ms/decision"):
         t.add_column(col, justify="left" if col in ("role", "policy") else "right")
     shown = [result.best_rule, result.best_mix, *result.policies, result.lookahead, result.bound]
     for e in shown:

@@ -41,6 +41,7 @@ from pnp_twin.cli.app import (
     EngineOpt,
     ForceOpt,
     FreshOpt,
+    KpiOpt,
     NoReportOpt,
     SetOpt,
     WorkersOpt,
@@ -52,6 +53,7 @@ from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.costing import check_costs, read_costs
 from pnp_twin.studies.folder import Tables
 from pnp_twin.studies.journal import DEFINITION
+from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.studies.plan import AUTO
 from pnp_twin.studies.rulemix import DEFAULT_BUDGET, check_mix, run_mix
 from pnp_twin.studies.sizing import COUNT, MTBF, check_size, run_size
@@ -422,9 +424,11 @@ def size(
     force: ForceOpt = False,
     engine: EngineOpt = Engine.auto,
     costs: CostsOpt = None,
+    kpi: KpiOpt = "gripping_rate",
 ) -> None:
     """The smallest robot count reaching a target gripping rate with a confidence."""
     sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
+    figure = parse_kpi(kpi, sc)
     grid = sc.sweep.grid if sc.sweep else {}
     counts = 1 if COUNT in grid else max(8, 2 * sc.robots.count)  # what run_size adds
     _check_work(sc, reps, _policy_count(sc, policy), force, counts * (1 if MTBF in grid else 2))
@@ -434,21 +438,22 @@ def size(
     _check_out(out, scenario, sc)
     opts = _options(workers, backend, address, fresh, None, confidence, engine)
     opts.costs, opts.costs_file = prices, str(costs or "")
+    opts.kpi = figure
     with removed_if_refused(out), progress_bar("size") as update:
         opts.progress = update
         tables, sizing = run_size(sc, out, target, opts, policy, reps, layout)
     rows = pd.DataFrame(sizing["rows"])
     rows = rows[rows[MTBF] == 0] if MTBF in rows else rows
     t = Table(
-        title=f"Gripping rate % by robot count ({100 * confidence:g} % CI of the rule picked "
-        "at each count)",
+        title=f"{figure.noun.capitalize() if figure.kind is None else figure.noun} % by robot "
+        f"count ({100 * confidence:g} % CI of the rule picked at each count)",
         box=box.SIMPLE,
     )
     others = [c for c in rows.columns if "." in c and c not in (COUNT, MTBF)]
     for c in [COUNT, *others]:
         t.add_column(c, justify="right")
     t.add_column("policy")
-    t.add_column("G %", justify="right")
+    t.add_column(f"{figure.short} %", justify="right")
     t.add_column(f">= {sizing['target']:g} %")
     for _, r in rows.iterrows():
         t.add_row(

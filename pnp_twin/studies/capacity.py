@@ -44,6 +44,7 @@ from typing import Any
 
 from pnp_twin.studies.calibrate_eval import Evaluator
 from pnp_twin.studies.design import choice_text, parse_vary
+from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import StudyError
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.studies.sizing import selected_confidence
@@ -77,11 +78,13 @@ class Capacity:
         confidence: float,
         progress: Callable[[int], None] | None = None,
         name: str = "",
+        column: str = "gripping_rate",
     ) -> None:
         self.name = name  # the configuration, in the journal's labels ("" for the first)
         self.scenario = scenario
         self.evaluator = evaluator
         self.target = target
+        self.column = column  # the runs' figure the target is on (--kpi)
         self.confidence = confidence
         self.level = selected_confidence(confidence, len(evaluator.policies))
         self.points: dict[float, dict[str, Any]] = {}
@@ -111,7 +114,7 @@ class Capacity:
         return point
 
     def _bounds(self, rows: Sequence[Mapping[str, Any]]) -> dict[str, float]:
-        mean, low, high = t_interval([r["gripping_rate"] for r in rows], self.level)
+        mean, low, high = t_interval([r[self.column] for r in rows], self.level)
         low = max(low, 0.0) if math.isfinite(low) else mean
         high = min(high, 100.0) if math.isfinite(high) else mean
         return {"mean": mean, "low": low, "high": high}
@@ -236,19 +239,23 @@ def run_capacity(
     command: str = "",
     progress: Callable[[int], None] | None = None,
     vary: Sequence[str] = (),
+    kpi: KpiChoice = GRIPPING,
 ) -> dict[str, Any]:
-    """Find the line's capacity at ``target`` into ``out``; returns capacity.json's mapping."""
+    """Find the line's capacity at ``target`` into ``out``; returns capacity.json's mapping.
+    With a ``kpi`` other than G the target and the curve's mean and bounds are on that
+    figure, which ``kpi`` names."""
     combos = check_capacity(scenario, target, confidence, replications, vary)
     rules = list(policies or [scenario.policy])
     t0 = time.perf_counter()
     seeds = replication_seeds(scenario.seed, replications)
-    ev = Evaluator(out, rules, seeds, ["part_flow", "throughput"], workers, engine)
+    kept = ["part_flow", "throughput"] + ([] if kpi.column == "gripping_rate" else [kpi.column])
+    ev = Evaluator(out, rules, seeds, kept, workers, engine)
     first = _round(start if start is not None else scenario.feeder.rate)
     found: list[dict[str, Any]] = []
     for i, values in enumerate(combos):
         sc = with_overrides(scenario, values) if values else scenario
         name = "".join(f"{k}={v}, " for k, v in values.items()) if i else ""
-        cap = Capacity(sc, ev, target, confidence, progress, name)
+        cap = Capacity(sc, ev, target, confidence, progress, name, kpi.column)
         cross = {name: cap.crossing(key, first) for name, key in CRITERIA.items()}
         by = {name: cap.rule_at(cross[name][0], key) for name, key in CRITERIA.items()}
         one: dict[str, Any] = {
@@ -265,12 +272,13 @@ def run_capacity(
             "target": target,
         }
         one["evaluated"] = len(one["curve"])
-        one["text"] = capacity_text(one)
+        one["text"] = capacity_text(one, kpi)
         found.append(one)
     head = found[0]
     result: dict[str, Any] = {
         "target": target,
         "confidence": confidence,
+        **({} if kpi.default else {"kpi": kpi.to_json()}),
         "max_rate": head["max_rate"],
         "ci_low": head["ci_low"],
         "ci_high": head["ci_high"],
@@ -311,10 +319,11 @@ def _line(c: Mapping[str, Any]) -> str:
     return choice_text({**choice, "policy": ""}).removesuffix(" running ")
 
 
-def capacity_text(c: dict[str, Any]) -> str:
-    """'With 6 robots you can promise 11.4 parts/s [11.1, 11.7] at 95 %' and how it ends."""
+def capacity_text(c: dict[str, Any], kpi: KpiChoice = GRIPPING) -> str:
+    """'With 6 robots you can promise 11.4 parts/s [11.1, 11.7] at 95 %' and how it ends
+    (the target on the ``kpi`` figure)."""
     n, conf = _line(c), f"{100 * c['confidence']:g} %"
-    goal = f"G ≥ {c['target']:g} %"
+    goal = f"{kpi.short} ≥ {c['target']:g} %"
     if c["max_rate"] is None:
         return f"With {n} no flow tried reaches {goal}, even at the lowest."
     lo, hi = c["ci_low"], c["ci_high"]

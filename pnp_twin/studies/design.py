@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.calibrate_eval import Evaluator
+from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import StudyError, field_path_error
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.twin.loader import ScenarioError, parse_value, with_overrides
@@ -192,14 +193,15 @@ class Config:
         self.policy = policy
         self.scenario = scenario
         self.capital = cost
-        self.g: list[float] = []
+        self.g: list[float] = []  # the gripping rate per replication (the lost parts' cost)
+        self.y: list[float] = []  # the figure the target is on (--kpi; G by default)
         self.flow: list[float] = []
 
     def label(self) -> str:
         return ", ".join(f"{k}={v}" for k, v in self.values.items()) + f", {self.policy}"
 
     def bounds(self, level: float) -> tuple[float, float, float]:
-        mean, low, high = t_interval(self.g, level)
+        mean, low, high = t_interval(self.y, level)
         low = max(low, 0.0) if math.isfinite(low) else 0.0
         high = min(high, 100.0) if math.isfinite(high) else 100.0
         return mean, low, high
@@ -319,8 +321,12 @@ def run_design(
     command: str = "",
     progress: Callable[[int, int], None] | None = None,
     trials: int = 30,
+    kpi: KpiChoice = GRIPPING,
 ) -> dict[str, Any]:
-    """Find the cheapest configuration meeting ``target`` (see the module docstring)."""
+    """Find the cheapest configuration meeting ``target`` (see the module docstring) on
+    the ``kpi`` figure (G by default): the rows' and the answer's ``gripping_rate``,
+    ``ci_low`` and ``ci_high`` are that figure's, which design.json's ``kpi`` names; the lost
+    parts' cost stays on G."""
     costs, grid, combos = check_design(
         scenario, target, vary, costs_file, confidence, first, most, trials
     )
@@ -333,6 +339,9 @@ def run_design(
     seeds = replication_seeds(scenario.seed, most)
     simulated = replayed = 0
     configs: list[Config] = []
+    # the KPIs each run keeps (part of its journal key: G's runs serve G and, on a line
+    # without kinds, the value rate; another figure's are its own)
+    kept = ["part_flow"] + ([] if kpi.column == "gripping_rate" else [kpi.column])
 
     def config(values: dict[str, Any], rule: str) -> Config:
         values = {p: values[p] for p in grid}  # the order the fields were given in
@@ -355,12 +364,13 @@ def run_design(
                 need = [c for c in mine if len(c.g) == rep]
                 if not need:
                     continue
-                ev = Evaluator(out, [rule], [seeds[rep]], ["part_flow"], workers, engine)
+                ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine)
                 rows = ev.runs([c.scenario for c in need], [c.label() for c in need])
                 simulated += ev.simulated
                 replayed += ev.replayed
                 for c, r in zip(need, rows, strict=True):
                     c.g.append(float(r[rule][0]["gripping_rate"]))
+                    c.y.append(float(r[rule][0][kpi.column]))
                     c.flow.append(float(r[rule][0]["part_flow"]))
         if progress is not None:
             progress(sum(len(c.g) for c in configs), k * most)
@@ -423,6 +433,7 @@ def run_design(
     result: dict[str, Any] = {
         "target": target,
         "confidence": confidence,
+        **({} if kpi.default else {"kpi": kpi.to_json()}),
         "confidence_each": level,
         "configurations": k,
         "evaluated": len(configs),
@@ -453,7 +464,7 @@ def run_design(
         "command": command,
         "wall_time": time.perf_counter() - t0,
     }
-    result["text"] = design_text(result)
+    result["text"] = design_text(result, kpi)
     write_json(result, Path(out) / SUMMARY_FILE, keep_nan=True)
     return result
 
@@ -522,20 +533,21 @@ def choice_text(choice: Mapping[str, Any]) -> str:
     return ", ".join(words) + f" running {choice.get('policy')}"
 
 
-def design_text(d: dict[str, Any]) -> str:
-    """The answer in one sentence, with the next best for how much more."""
+def design_text(d: dict[str, Any], kpi: KpiChoice = GRIPPING) -> str:
+    """The answer in one sentence (on the ``kpi`` figure), with the next best for how much
+    more."""
     conf = f"{100 * d['confidence']:g} %"
     k, n = d["configurations"], d.get("evaluated", d["configurations"])
     among = f"{k} configurations" if n == k else f"the {n} points evaluated (of {k} allowed)"
     if d["choice"] is None:
         return (
-            f"No configuration of the {n} tried meets G ≥ {d['target']:g} % "
+            f"No configuration of the {n} tried meets {kpi.short} ≥ {d['target']:g} % "
             f"with {conf} confidence (after selecting among them)."
         )
     out = (
-        f"{choice_text(d['choice'])}: G = {d['gripping_rate']:.1f} % "
-        f"[{d['ci_low']:.1f}, {d['ci_high']:.1f}] meets G ≥ {d['target']:g} % with {conf} "
-        f"confidence after selecting among {among}; total cost "
+        f"{choice_text(d['choice'])}: {kpi.short} = {d['gripping_rate']:.1f} % "
+        f"[{d['ci_low']:.1f}, {d['ci_high']:.1f}] meets {kpi.short} ≥ {d['target']:g} % "
+        f"with {conf} confidence after selecting among {among}; total cost "
         f"{d['total_cost']:,.0f}"
     )
     other = [

@@ -32,6 +32,7 @@ import numpy as np
 
 from pnp_twin.policies.registry import make_policy
 from pnp_twin.policies.rules import RULES
+from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.twin.run import simulate
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.stats import t_interval
@@ -63,6 +64,9 @@ class HeadroomSettings:
     engine: str = "fast"
     workers: int = 1
     confidence: float = 0.95
+    kpi: KpiChoice = GRIPPING
+    """The figure compared (``--kpi``): G, the value rate or one kind's G; the entries'
+    ``gripping_rate``, ``ci_low``, ``ci_high`` and gains are on it."""
 
     @property
     def seed_list(self) -> list[int]:
@@ -115,6 +119,9 @@ class Headroom:
     bound: Entry
     tuning_seeds: list[int] = field(default_factory=list)
     part_flow: float | None = None  # parts/s presented, measured (the best rule's runs)
+    # what the figure is a percentage of, per second (the best rule's runs), and its unit:
+    # the part flow for G; the value presented, or the kind's parts, for another --kpi
+    figure_flow: tuple[float, str] | None = None
 
     @property
     def entries(self) -> list[Entry]:
@@ -133,6 +140,7 @@ class Headroom:
             "termination": sc.termination,
             "engine": s.engine,
             "confidence": s.confidence,
+            **({} if s.kpi.default else {"kpi": s.kpi.to_json()}),
             "answer": answer(self),
             "note": BOUND_NOTE,
             "part_flow": self.part_flow,
@@ -145,9 +153,12 @@ class Headroom:
         }
 
     def runs(self) -> list[dict[str, Any]]:
-        """One row per policy and seed: role, policy, seed, gripping_rate."""
+        """One row per policy and seed: role, policy, seed, gripping_rate (the ``kpi``
+        figure, which a ``kpi`` column names when it is not G)."""
+        kpi = self.settings.kpi
+        named = {} if kpi.default else {"kpi": kpi.name}
         return [
-            {"role": e.role, "policy": e.policy, "seed": seed, "gripping_rate": g}
+            {"role": e.role, "policy": e.policy, "seed": seed, "gripping_rate": g, **named}
             for e in self.entries
             for seed, g in zip(self.settings.seed_list, e.values, strict=True)
         ]
@@ -167,15 +178,21 @@ def check_policies(scenario: Scenario, settings: HeadroomSettings) -> None:
         )
 
 
-def _one(job: tuple[Scenario, str, int, str]) -> tuple[float, float | None, float]:
-    """Gripping rate of one run, the policy's CPU ms per decision when it reports it, and
-    the part flow measured over the window (parts presented per second)."""
-    scenario, spec, seed, engine = job
+Job = tuple[Scenario, str, int, str, KpiChoice]
+One = tuple[float, float | None, float, tuple[float, str]]
+
+
+def _one(job: Job) -> One:
+    """The ``kpi`` figure of one run (G by default), the policy's CPU ms per decision when
+    it reports it, the part flow measured over the window (parts presented per second) and
+    the figure's own flow (:meth:`KpiChoice.flow`)."""
+    scenario, spec, seed, engine, kpi = job
     policy = make_policy(spec, scenario.robots.count)
     result = simulate(scenario, policy, seed=seed, engine=engine)
     stats = getattr(policy, "stats", None)
     cpu = float(stats()["cpu_ms_per_decision"]) if callable(stats) else None
-    return float(result.kpis["gripping_rate"]), cpu, float(result.kpis["part_flow"])
+    k = result.kpis
+    return kpi.of(k), cpu, float(k["part_flow"]), kpi.flow(k)
 
 
 Progress = Callable[[str, int, int], None]
@@ -187,12 +204,13 @@ def _rates(
     seeds: Sequence[int],
     settings: HeadroomSettings,
     progress: Progress | None = None,
+    figure: list[tuple[float, str]] | None = None,
 ) -> tuple[list[float], float | None, float]:
-    """Gripping rate per seed (in ``settings.workers`` processes), mean CPU per decision
-    and mean measured part flow."""
+    """The ``settings.kpi`` figure per seed (in ``settings.workers`` processes), mean CPU per
+    decision and mean measured part flow (and, into ``figure``, the figure's mean flow)."""
     from pnp_twin.parallel import pool_map_ordered
 
-    jobs = [(scenario, spec, s, settings.engine) for s in seeds]
+    jobs = [(scenario, spec, s, settings.engine, settings.kpi) for s in seeds]
     done = [0]
 
     def tick(_: Any) -> None:
@@ -208,9 +226,11 @@ def _rates(
         for job in jobs:
             out.append(_one(job))
             tick(None)
-    cpus = [c for _, c, _ in out if c is not None]
-    flow = float(np.mean([f for _, _, f in out]))
-    return [g for g, _, _ in out], (float(np.mean(cpus)) if cpus else None), flow
+    cpus = [c for _, c, _, _ in out if c is not None]
+    flow = float(np.mean([f for _, _, f, _ in out]))
+    if figure is not None:
+        figure.append((float(np.mean([w[0] for *_, w in out])), out[0][3][1]))
+    return [g for g, _, _, _ in out], (float(np.mean(cpus)) if cpus else None), flow
 
 
 def search_mix(
@@ -262,8 +282,11 @@ def run_headroom(
     c = settings.confidence
     raw: dict[str, list[float]] = {}
     flows: dict[str, float] = {}
+    figure: dict[str, tuple[float, str]] = {}
     for rule in RULES:
-        raw[rule], _, flows[rule] = _rates(scenario, rule, seeds, settings, progress)
+        got: list[tuple[float, str]] = []
+        raw[rule], _, flows[rule] = _rates(scenario, rule, seeds, settings, progress, got)
+        figure[rule] = got[0]
     best = max(RULES, key=lambda r: (float(np.mean(raw[r])), -list(RULES).index(r)))
     ref = raw[best]
     rules = [_entry("rule", r, raw[r], ref, c) for r in RULES]
@@ -285,7 +308,7 @@ def run_headroom(
     tuning = [] if settings.mix else [TUNING_SEED_BASE + i for i in range(settings.tuning_seeds)]
     return Headroom(
         scenario, settings, rules, best_rule, best_mix, policies, found["lookahead"],
-        found["bound"], tuning, flows[best],
+        found["bound"], tuning, flows[best], None if settings.kpi.default else figure[best],
     )  # fmt: skip
 
 
@@ -297,14 +320,23 @@ def answer(h: Headroom) -> str:
     """The study's answer in one sentence (points over the best rule, with the paired 95 %
     intervals, and what the lookahead's gain is worth in parts per hour)."""
     sc, b, la, bound = h.scenario, h.best_rule, h.lookahead, h.bound
-    flow = h.part_flow
+    flow, unit = h.figure_flow or (h.part_flow, "parts")
     worth = ""
     if flow is not None and math.isfinite(flow) and math.isfinite(la.gain):
-        worth = f", worth {la.gain / 100.0 * flow * 3600.0:+,.0f} parts an hour gripped"
+        amount = la.gain / 100.0 * flow * 3600.0
+        big = unit != "in value" or abs(amount) >= 100  # a value may be a few euros
+        worth = f", worth {amount:+,.0f}" if big else f", worth {amount:+.3g}"
+        worth += f" {unit} an hour gripped"
+    kpi = h.settings.kpi
+    grips = (
+        f"grips {b.gripping_rate:.2f} %"
+        if kpi.default
+        else f"reaches a {kpi.noun} of {b.gripping_rate:.2f} %"
+    )
     sure = "above zero" if la.gain_ci_low > 0 else "not surely above zero"
     extra = "".join(f"; {e.policy} gets {_points(e)}" for e in h.policies)
     return (
-        f"On {sc.name} the best rule, {b.policy}, grips {b.gripping_rate:.2f} %; a smarter "
+        f"On {sc.name} the best rule, {b.policy}, {grips}; a smarter "
         f"controller could gain up to {_points(bound)} here (the clairvoyant one-step bound); "
         f"the lookahead controller gets {_points(la)} ({sure}){worth}; the best static mix "
         f"{h.best_mix.policy} gets {_points(h.best_mix)}{extra}."

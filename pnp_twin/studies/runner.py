@@ -29,6 +29,7 @@ from pnp_twin.studies.folder import (
     write_tables,
 )
 from pnp_twin.studies.journal import Journal
+from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import RunSpec, StudyPlan
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.stats import t_interval
@@ -53,6 +54,7 @@ class Options:
     engine: str = "auto"  # simulation engine of every run (results are identical)
     costs: dict[str, Any] | None = None  # --costs: prices (studies.design.read_costs)
     costs_file: str = ""
+    kpi: KpiChoice = GRIPPING  # --kpi of size: the figure the target is on (an analysis setting)
 
 
 @dataclass

@@ -41,6 +41,7 @@ from typing import Any
 import pandas as pd
 
 from pnp_twin.studies.folder import Tables, write_records
+from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import RunSpec, StudyError, StudyPlan, build_plan
 from pnp_twin.studies.runner import Options, finish, open_session, run_plan
 from pnp_twin.twin.loader import ScenarioError, with_overrides
@@ -177,12 +178,15 @@ def point_rows(
     target: float,
     results: pd.DataFrame | None = None,
     confidence: float = 0.95,
+    column: str = "gripping_rate",
 ) -> pd.DataFrame:
     """Per grid point, the rule to run there, its mean G and CI, and whether it reached the
     target. With several rules the best one is picked after seeing the data, so its own
     interval would be optimistic: each rule's interval is taken at the Bonferroni level
     :func:`selected_confidence` (computed from ``results``), the rule with the highest such
-    lower bound is the one to run, and the point reaches the target when that bound does."""
+    lower bound is the one to run, and the point reaches the target when that bound does.
+    ``column``: the results' figure the target is on (``--kpi``; its mean and interval go
+    under ``gripping_rate_mean``, ``ci_low`` and ``ci_high``)."""
     best = summary.loc[summary.groupby("point")["gripping_rate_mean"].idxmax()]
     if results is None or results.empty:
         out = best[["point", *grid, "policy"]].copy()
@@ -191,7 +195,7 @@ def point_rows(
         out["ci_high"] = best["gripping_rate_ci_high"]
         out["reached"] = (best["gripping_rate_ci_low"] >= target).to_numpy()
         return out.reset_index(drop=True)
-    each = rule_rows(results, grid, target, confidence)
+    each = rule_rows(results, grid, target, confidence, column)
 
     def key(i: Any) -> tuple[float, float]:  # ties: the first rule given
         low = float(each.at[i, "ci_low"])
@@ -202,7 +206,11 @@ def point_rows(
 
 
 def rule_rows(
-    results: pd.DataFrame, grid: Sequence[str], target: float, confidence: float
+    results: pd.DataFrame,
+    grid: Sequence[str],
+    target: float,
+    confidence: float,
+    column: str = "gripping_rate",
 ) -> pd.DataFrame:
     """Per grid point and rule: mean G and its interval at the Bonferroni level over the
     point's rules (:func:`selected_confidence`), and whether the lower bound reaches the
@@ -213,7 +221,7 @@ def rule_rows(
         level = selected_confidence(confidence, len(rules))
         first = at.iloc[0]
         for rule in rules:
-            mean, low, high = t_interval(at.loc[at["policy"] == rule, "gripping_rate"], level)
+            mean, low, high = t_interval(at.loc[at["policy"] == rule, column], level)
             low, high = max(low, 0.0), min(high, 100.0)  # G cannot leave [0, 100]
             rows.append(
                 {
@@ -345,16 +353,19 @@ def analyse(
     scenario: Scenario,
     target: float,
     confidence: float,
+    kpi: KpiChoice = GRIPPING,
 ) -> dict[str, Any]:
-    """The sizing.json mapping of a finished sizing study."""
-    rows = point_rows(summary, grid, target, results, confidence)
+    """The sizing.json mapping of a finished sizing study; with a ``kpi`` other than the
+    gripping rate, the target and the rows' ``gripping_rate_mean``, ``ci_low`` and
+    ``ci_high`` are on that figure, which ``kpi`` names."""
+    rows = point_rows(summary, grid, target, results, confidence, kpi.column)
     rules = int(results["policy"].nunique()) if len(results) else 1
     mtbf_values = sorted(rows[MTBF].unique()) if MTBF in grid else [0.0]
     others = [p for p in grid if p not in (COUNT, MTBF)]
     plain = rows[rows[MTBF] == 0] if MTBF in grid else rows
     failing = rows[rows[MTBF] == mtbf_values[-1]] if mtbf_values[-1] > 0 else None
     conditions = _conditions(plain, others)
-    each = rule_rows(results, grid, target, confidence)
+    each = rule_rows(results, grid, target, confidence, kpi.column)
     each_plain = each[each[MTBF] == 0] if MTBF in grid else each
     answer, rule = fixed_sequence(each_plain, conditions)
     by_condition = [{**c, "answer": fixed_sequence(each_plain, [c])[0]} for c in conditions]
@@ -375,6 +386,7 @@ def analyse(
     out = {
         "target": target,
         "confidence": confidence,
+        **({} if kpi.default else {"kpi": kpi.to_json()}),
         "parameter": COUNT,
         "rows": _records(_answer_rule(rows, each_plain, answer, rule)),
         "answer": answer,
@@ -400,7 +412,7 @@ def analyse(
             "n_minus_1": minus,
         },
     }
-    out["text"] = describe(out, _g(answer_row), conditions[0] if others else {})
+    out["text"] = describe(out, _g(answer_row), conditions[0] if others else {}, kpi)
     return out
 
 
@@ -424,19 +436,25 @@ def _records(frame: pd.DataFrame) -> list[dict[str, Any]]:
     ]
 
 
-def describe(s: dict[str, Any], at_answer: dict[str, Any] | None, base: dict[str, Any]) -> str:
-    """The sizing answer in plain words."""
+def describe(
+    s: dict[str, Any],
+    at_answer: dict[str, Any] | None,
+    base: dict[str, Any],
+    kpi: KpiChoice = GRIPPING,
+) -> str:
+    """The sizing answer in plain words (on the ``kpi`` figure)."""
     conf = f"{100 * s['confidence']:g} %"
     where = ""
     if len(s["by_condition"]) > 1:
         where = " in every swept condition"
     if s["answer"] is None:
-        first = f"No robot count in the study reaches {s['target']:g} % with {conf} confidence."
+        goal = f"{s['target']:g} %" if kpi.default else f"a {s['target']:g} % {kpi.noun}"
+        first = f"No robot count in the study reaches {goal} with {conf} confidence."
     else:
         lb = f" (lower bound {at_answer['ci_low']:.1f} %)" if at_answer else ""
         rule = f" running {s['rule']}" if s.get("rule") else ""
         first = (
-            f"{s['answer']} robots{rule} reach a {s['target']:g} % gripping rate with {conf} "
+            f"{s['answer']} robots{rule} reach a {s['target']:g} % {kpi.noun} with {conf} "
             f"confidence{where}{lb}."
         )
     r = s["rule_of_thumb"]
@@ -458,7 +476,8 @@ def describe(s: dict[str, Any], at_answer: dict[str, Any] | None, base: dict[str
     )
     m = b["n_minus_1"]
     down = (
-        f" With one robot down ({m['robots']} working), G = {m['gripping_rate_mean']:.1f} % "
+        f" With one robot down ({m['robots']} working), {kpi.short} = "
+        f"{m['gripping_rate_mean']:.1f} % "
         f"[{m['ci_low']:.1f}, {m['ci_high']:.1f}]."
         if m
         else ""
@@ -515,12 +534,23 @@ def run_size(
         plan = share_layout(plan, scenario)
     # study.json keeps what is simulated (the layout) apart from how the runs are read (the
     # target and confidence): another --target or --confidence reuses every stored run
-    analysis = {"target": target, "confidence": options.confidence}
+    analysis: dict[str, Any] = {"target": target, "confidence": options.confidence}
+    kpi = options.kpi
+    if not kpi.default:  # how the runs are read, too: another --kpi reuses every stored run
+        analysis["kpi"] = kpi.name
+        if plan.precision is not None:  # -r auto: the half-width of the figure sized on
+            plan = replace(plan, precision=replace(plan.precision, kpi=kpi.column))
     session = open_session(out, plan, "size", options, {"layout": layout, "analysis": analysis})
     plan, rows = run_plan(session, plan)
     tables = finish(session, plan, "size", rows, {"layout": layout, **analysis})
     sizing = analyse(
-        tables.results, tables.summary, list(plan.grid), plan.scenario, target, options.confidence
+        tables.results,
+        tables.summary,
+        list(plan.grid),
+        plan.scenario,
+        target,
+        options.confidence,
+        kpi,
     )
     sizing["layout"] = layout_summary(plan, layout)
     sizing["layout"]["text"] = layout_text(sizing["layout"], scenario)
