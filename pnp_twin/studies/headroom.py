@@ -233,6 +233,12 @@ def _rates(
     return [g for g, _, _, _ in out], (float(np.mean(cpus)) if cpus else None), flow
 
 
+def line_rules(scenario: Scenario) -> list[str]:
+    """The rules compared: the six, and VAL on a line whose kinds of part differ in value."""
+    values = {k.value for k in scenario.feeder.kinds}
+    return [*RULES, "VAL"] if len(values) > 1 else list(RULES)
+
+
 def search_mix(
     scenario: Scenario, settings: HeadroomSettings, progress: Progress | None = None
 ) -> str:
@@ -250,11 +256,12 @@ def search_mix(
                 progress("mix search", len(cache), 0)
         return cache[mix]
 
-    best = max(((r,) * n for r in RULES), key=score)
+    rules = line_rules(scenario)
+    best = max(((r,) * n for r in rules), key=score)
     for _ in range(2):
         improved = False
         for i in range(n):
-            for r in RULES:
+            for r in rules:
                 mix = best[:i] + (r,) + best[i + 1 :]
                 if score(mix) > score(best):
                     best, improved = mix, True
@@ -283,13 +290,14 @@ def run_headroom(
     raw: dict[str, list[float]] = {}
     flows: dict[str, float] = {}
     figure: dict[str, tuple[float, str]] = {}
-    for rule in RULES:
+    tried = line_rules(scenario)
+    for rule in tried:
         got: list[tuple[float, str]] = []
         raw[rule], _, flows[rule] = _rates(scenario, rule, seeds, settings, progress, got)
         figure[rule] = got[0]
-    best = max(RULES, key=lambda r: (float(np.mean(raw[r])), -list(RULES).index(r)))
+    best = max(tried, key=lambda r: (float(np.mean(raw[r])), -tried.index(r)))
     ref = raw[best]
-    rules = [_entry("rule", r, raw[r], ref, c) for r in RULES]
+    rules = [_entry("rule", r, raw[r], ref, c) for r in tried]
     best_rule = next(e for e in rules if e.policy == best)
     mix = settings.mix or search_mix(scenario, settings, progress)
     mix_values = raw.get(mix) or _rates(scenario, mix, seeds, settings, progress)[0]

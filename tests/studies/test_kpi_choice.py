@@ -287,3 +287,21 @@ def test_headroom_value_rate_on_a_line_of_one_kind_is_g_and_says_so(tmp_path: Pa
     assert "reaches a value rate of" in v["answer"] and "grips" in g["answer"]
     runs = pd.read_csv(tmp_path / "value_rate" / "runs.csv")
     assert set(runs["kpi"]) == {"value_rate"}
+
+
+def test_headroom_on_a_line_of_valued_kinds_compares_val_and_the_lookahead(tmp_path: Path) -> None:
+    """On waste_sorting (kinds of different value) the rules compared include VAL, and the
+    lookahead plans over futures whose parts carry kinds; each row is the value rate."""
+    fast = ["--seeds", "2", "--duration", "12", "--mix", "SPT"]
+    fast += ["--lookahead", "lookahead:K=2,H=0.5"]
+    code, stdout, stderr = cli(
+        "headroom", "waste_sorting", *fast, "--out", str(tmp_path / "h"), "--kpi", "value_rate",
+        "--json",
+    )  # fmt: skip
+    assert code == 0, stderr
+    got = json.loads(stdout)
+    assert "VAL" in {r["policy"] for r in got["rules"]}
+    rate = {r["policy"]: r["gripping_rate"] for r in got["rules"]}  # the value rate, here
+    assert rate["VAL"] > rate["FIFO"]  # FIFO lets cans pass to the PET-only robots
+    assert got["best_rule"]["policy"] == "VAL"
+    assert 0.0 < got["lookahead"]["gripping_rate"] <= 100.0
