@@ -181,10 +181,11 @@ def settings_rows(scenario: Mapping[str, Any]) -> str:
     if not overrides:
         return ""
     n = int(robots.get("count") or max(overrides))
+    alternate = robots.get("side") == "alternate"  # odd robots upper, even robots lower
     shown = SETTINGS + tuple(
         (key, h, u)
         for key, h, u in SHAPE_SETTINGS
-        if any(o.get(key) is not None for o in overrides.values())
+        if any(o.get(key) is not None for o in overrides.values()) or (key == "side" and alternate)
     )
     header = ["Robot", *(f"{h} ({u})" if u else h for _, h, u in shown)]
     rows = []
@@ -197,6 +198,8 @@ def settings_rows(scenario: Mapping[str, Any]) -> str:
                 row.append(f"<b>{esc(_num(value) or 'all')}</b> ●")
             else:
                 shared = robots.get(key)
+                if key == "side" and alternate:
+                    shared = "upper" if i % 2 else "lower"
                 row.append(esc(_num(shared) or "all") if shared is not None else "–")
         rows.append(row)
     note = '<p class="note">● overridden for this robot (robots.overrides); the rest are '

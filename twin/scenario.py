@@ -209,7 +209,7 @@ Mtbf = Annotated[
     Real, Field(ge=0, le=1e9), least(0.1, "s", "10 breakdowns per second", zero_is_off=True)
 ]
 Mttr = Annotated[Real, Field(ge=0, le=1e7)]
-Side = Literal["upper", "lower", "over"]
+Side = Literal["upper", "lower", "over", "alternate"]
 Reach = Annotated[Real, Field(ge=0, le=100)]
 BaseOffset = Annotated[Real, Field(ge=0, le=10)]
 Kinds = tuple[KindName, ...]
@@ -229,7 +229,9 @@ class RobotOverride(Frozen):
     bin_offset: BinOffset | None = num(None, "m", "Bin position of this robot, as robots'.")
     mtbf: Mtbf | None = num(None, "s", "Mean time between failures of this robot in s.")
     mttr: Mttr | None = num(None, "s", "Mean time to repair of this robot in s.")
-    side: Side | None = Field(None, description="Side of this robot: upper, lower or over.")
+    side: Side | None = Field(
+        None, description="Side of this robot: upper, lower, over (or alternate: by its number)."
+    )
     reach: Reach | None = num(None, "m", "Reach of this robot from its base in m; 0: no limit.")
     base_offset: BaseOffset | None = num(
         None, "m", "Distance of this robot's base outward from its belt edge in m."
@@ -277,8 +279,9 @@ class RobotsConfig(Frozen):
     side: Side = Field(
         "upper",
         description="Where the robots stand: beside the belt on the upper side (y > W), the "
-        "lower side (y < 0; the bin mirrored there), or over the belt (base above its centre "
-        "line; bin offset as given). Workspaces are laid out back to back per side.",
+        "lower side (y < 0; the bin mirrored there), over the belt (base above its centre "
+        "line; bin offset as given), or alternate (odd robots upper, even robots lower: facing "
+        "pairs for any robot count). Workspaces are laid out back to back per side.",
     )
     reach: Reach = num(
         0.0,
@@ -320,17 +323,26 @@ class RobotsConfig(Frozen):
         return self
 
     def param(self, robot: int, name: str) -> Any:
-        """Robot ``robot``'s (1-based) value of ``name``, its override if set."""
+        """Robot ``robot``'s (1-based) value of ``name``, its override if set (a side of
+        "alternate" resolved: upper for odd robots, lower for even ones)."""
+        value = getattr(self, name)
         for o in self.overrides:
-            if o.robot == robot:
+            if o.robot == robot and getattr(o, name) is not None:
                 value = getattr(o, name)
-                if value is not None:
-                    return value
-        return getattr(self, name)
+        if name == "side" and value == "alternate":
+            return "upper" if robot % 2 else "lower"
+        return value
 
-    def sides(self) -> list[str]:
-        """Each robot's side, robot 1 first."""
-        return [self.param(i, "side") for i in range(1, self.count + 1)]
+    def sides(self, count: int | None = None) -> list[str]:
+        """Each robot's side, robot 1 first (of the first ``count`` robots: a sizing study's
+        count, robots past this line's count standing on the shared side)."""
+        return [self.param(i, "side") for i in range(1, (count or self.count) + 1)]
+
+    def deepest(self, count: int | None = None) -> int:
+        """The most workspaces laid out back to back on one side (of ``count`` robots): how
+        many workspace lengths of belt the robots need."""
+        sides = self.sides(count)
+        return max(sides.count(side) for side in SIDES)
 
     def layout(self) -> list[tuple[float, float]]:
         """Workspace bounds [a_i, b_i] in m (:func:`twin.geometry.workspaces`): explicit ones,

@@ -83,7 +83,8 @@ def sizing_setup(
     out.setdefault(MTBF, [0.0, mtbf])
     base: dict[str, Any] = {"robots.mttr": mttr}
     if layout == "extend":
-        end = r.first_workspace_start + max(counts) * (r.workspace_length + r.workspace_gap)
+        deepest = r.deepest(max(counts))  # per side: facing robots share x-ranges
+        end = r.first_workspace_start + deepest * (r.workspace_length + r.workspace_gap)
         base["belt.length"] = max(scenario.belt.length, round(end + 0.1, 3))
     else:  # every point validates with the narrowest workspaces; share_layout sets each
         base["robots.workspace_length"] = shared_length(scenario, max(counts))
@@ -94,10 +95,12 @@ def sizing_setup(
 
 
 def shared_length(scenario: Scenario, n: int) -> float:
-    """Workspace length of ``n`` robots sharing the stretch the scenario's robots cover."""
+    """Workspace length of ``n`` robots sharing the stretch the scenario's robots cover
+    (laid out per side: the side with the most robots sets it)."""
     r = scenario.robots
-    span = r.count * r.workspace_length + (r.count - 1) * r.workspace_gap
-    length = (span - (n - 1) * r.workspace_gap) / n
+    now, then = r.deepest(), r.deepest(n)
+    span = now * r.workspace_length + (now - 1) * r.workspace_gap
+    length = (span - (then - 1) * r.workspace_gap) / then
     if length <= 0:
         raise StudyError(
             f"--layout share: {n} robots with workspace_gap {r.workspace_gap:g} m do not fit "
@@ -134,11 +137,13 @@ def layout_text(layout: dict[str, Any], scenario: Scenario) -> str:
     """One sentence on how the robots were laid out."""
     r = scenario.robots
     if layout["mode"] == "share":
-        span = r.count * r.workspace_length + (r.count - 1) * r.workspace_gap
+        deep = r.deepest()
+        span = deep * r.workspace_length + (deep - 1) * r.workspace_gap
+        per = "N" if deep == r.count else "the robots on the fullest side"
         return (
             f"Layout: share. The {scenario.belt.length:g} m belt is kept; N robots share the "
             f"{span:g} m stretch that the scenario's {r.count} robots cover, each with a "
-            f"workspace of {span:g} / N m."
+            f"workspace of {span:g} / {per} m."
         )
     longest = max(c["belt_length"] for c in layout["counts"].values())
     grown = (

@@ -311,3 +311,13 @@ def test_kinds_every_robot_picks_are_identical_and_timed_per_kind(
     if rule == "VAL":
         first = result.parts.groupby("kind")["outcome"].apply(lambda o: (o == "picked").mean())
         assert first["c"] >= first["b"] >= first["a"]  # the valuable kinds are taken first
+
+
+def test_alternate_sides_face_in_pairs_at_any_robot_count() -> None:
+    for count in (1, 2, 5):
+        sc = load_scenario("two_sided", {"robots.count": count, "belt.length": 0.3 + 0.5 * 3})
+        sides = [s.side for s in robot_specs(sc)]
+        assert sides == ["upper" if i % 2 == 0 else "lower" for i in range(count)]
+    explicit = load_scenario("two_sided", {"robots.side": "upper", "robots.overrides": [
+        {"robot": 2, "side": "lower"}, {"robot": 4, "side": "lower"}]})  # fmt: skip
+    assert robot_specs(explicit) == robot_specs(load_scenario("two_sided"))
