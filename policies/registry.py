@@ -19,6 +19,9 @@ PREFIXED: dict[str, str] = {
     "sb3": "pnp_twin.policies.sb3_policy:from_spec",
     "lookahead": "pnp_twin.policies.lookahead:from_spec",
     "py": "pnp_twin.policies.user_policy:from_spec",
+    "share": "pnp_twin.policies.balancing:share_policy",
+    "lane": "pnp_twin.policies.balancing:lane_policy",
+    "list": "pnp_twin.policies.balancing:list_policy",
 }
 
 

@@ -106,8 +106,10 @@ class Policy(Protocol):
     def reset(self, robots: list[RobotSpec], rng: np.random.Generator) -> None:
         """Called once before a run with the robots and the run's policy stream."""
 
-    def choose(self, decision: Decision) -> int:
-        """Index into ``decision.parts`` of the part to pick (there is at least one)."""
+    def choose(self, decision: Decision) -> int | None:
+        """Index into ``decision.parts`` of the part to pick (there is at least one), or
+        None to pick nothing now: the robot takes a NooP (a balancing controller's robot
+        that owns no candidate)."""
         ...
 
 

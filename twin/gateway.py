@@ -85,13 +85,17 @@ class Gateway:
             self._join_any(robot)
         return event
 
-    def choose(self, robot: Station, decision: Decision) -> tuple[int, str | None]:
-        """The policy's answer: (index of the candidate, name of the rule behind it or None).
+    def choose(self, robot: Station, decision: Decision) -> tuple[int | None, str | None]:
+        """The policy's answer: (index of the candidate, name of the rule behind it or None);
+        (None, None) when the policy picks nothing now (the robot takes a NooP, which the
+        robot records).
 
         A policy names its rule with a ``last_rule`` attribute (see :mod:`twin.decision`).
         """
         policy = self.policy
         k = policy.choose(decision)
+        if k is None:
+            return None, None
         if k < 0 or k >= len(decision.parts):
             raise IndexError(
                 f"policy {type(policy).__name__} chose candidate {k} of "

@@ -265,6 +265,9 @@ class Robot:
                 continue
             d = Decision(spec, t0, self.tool, *found)
             k, rule = gw.choose(self, d)
+            if k is None:  # the policy picks nothing now
+                yield from self._noop()
+                continue
             part, t, kind = d.parts[k], d.times[k], d.kinds[k]
             tx, ty = d.xs[k] + v * t, d.ys[k]
             belt.claim(part, me, t0 + t)

@@ -29,6 +29,7 @@ COMMANDS: dict[str, str] = {
     "capacity": "capacity_cmd",
     "design": "design_cmd",
     "headroom": "headroom_cmd",
+    "tune": "tune_cmd",
     "task": "task_cmd",
 }
 """Each command and the module (in this package) that registers it, in ``--help`` order."""

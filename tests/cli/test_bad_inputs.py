@@ -334,6 +334,17 @@ CASES: dict[str, Case] = {
     "headroom of a missing file": Case(
         ["headroom", "nothere.toml", "--out", "o"], ["nothere.toml"]
     ),
+    "tune of a missing file": Case(["tune", "nothere.toml", "--out", "o"], ["nothere.toml"]),
+    "tune of an unknown strategy": Case(
+        ["tune", "paper_baseline", "--strategy", "zigzag", "--out", "o"], ["zigzag", "share, lane"]
+    ),
+    "a share policy of the wrong length": Case(
+        ["run", "paper_baseline", "--policy", "share:50,100", *SHORT], ["2 shares for 4 robots"]
+    ),
+    "a lane policy with a gap": Case(
+        ["run", "paper_baseline", "--policy", "lane:0-0.1,0.2-0.3,0.3-0.35,0.35-0.4", *SHORT],
+        ["gap from y = 0.1 to 0.2 m"],
+    ),
     "task score of an unknown task": Case(
         ["task", "score", "nosuch", "--policy", "SD"], ["nosuch", "baseline"]
     ),

@@ -36,6 +36,7 @@ from pnp_twin.twin.fast.belt_view import BeltView
 from pnp_twin.twin.fast.kernel import (
     choose_external,
     close_open_spans,
+    decline_external,
     release,
     run_events,
     start_robots,
@@ -334,6 +335,9 @@ class FastLine:
             self.kind_code[self._c_i[:n]].tolist(),
         )
         k = self.external.choose(d)
+        if k is None:  # as Robot.working: the policy picks nothing now, a NooP
+            decline_external(self.params, self.state, self.streams)
+            return
         if k < 0 or k >= n:  # as Gateway.choose
             raise IndexError(
                 f"policy {type(self.external).__name__} chose candidate {k} of {n} for robot {r}"

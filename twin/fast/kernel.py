@@ -99,10 +99,14 @@ from pnp_twin.twin.fast.robot import (
     _draw,
     _span,
     choose_external,
+    decline_external,
     start_robots,
 )
 
-__all__ = ["choose_external", "close_open_spans", "release", "run_events", "start_robots"]
+__all__ = [
+    "choose_external", "close_open_spans", "decline_external", "release", "run_events",
+    "start_robots",
+]  # fmt: skip
 
 
 @compiled(inline=True)

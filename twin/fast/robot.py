@@ -390,25 +390,32 @@ def _next_entry(gp, fed, holder, now, x, hint, floor):
     return fed[i] + lag - now, i
 
 
+@compiled(inline=True)
+def _noop(p, s, st, r, now):
+    """Robot._noop: wait until the next part enters the workspace or one belt tick passes."""
+    fp, gp, ist, gs = p.fp, p.gp, s.ist, s.gs
+    s.counts[r, NOOP] += 1
+    floor = ist[r, NOOPPART] if ist[r, NOOPSTAMP] == gs[RELEASES] else 0
+    wait, ist[r, NOOPPART] = _next_entry(
+        gp, st.fed, s.holder, now, fp[r, BA], ist[r, HINT_HI], floor
+    )
+    ist[r, NOOPSTAMP] = gs[RELEASES]
+    tick = gp[TICK]
+    if tick < wait:
+        wait = tick
+    if now + wait <= now:  # too small to move the clock: a NooP must let time pass
+        wait = tick
+    _schedule(s, r, now + wait, NORMAL, PC_NOOP)
+
+
 @compiled()
 def _decide(p, s, st, sc, r, now, v):
     """Look at the candidates: pick one (claim it, start the approach) or take a NooP."""
-    fp, gp, fs, ist, gs = p.fp, p.gp, s.fs, s.ist, s.gs
+    fs, ist, gs = s.fs, s.ist, s.gs
     n = _candidates(p, s, st, sc, r, now)
     fs[r, T0] = now
     if n == 0:
-        s.counts[r, NOOP] += 1
-        floor = ist[r, NOOPPART] if ist[r, NOOPSTAMP] == gs[RELEASES] else 0
-        wait, ist[r, NOOPPART] = _next_entry(
-            gp, st.fed, s.holder, now, fp[r, BA], ist[r, HINT_HI], floor
-        )
-        ist[r, NOOPSTAMP] = gs[RELEASES]
-        tick = gp[TICK]
-        if tick < wait:
-            wait = tick
-        if now + wait <= now:  # too small to move the clock: a NooP must let time pass
-            wait = tick
-        _schedule(s, r, now + wait, NORMAL, PC_NOOP)
+        _noop(p, s, st, r, now)
         return
     rule = p.ip[r, RULE]
     if rule == EXTERNAL:  # the caller chooses: choose_external resumes
@@ -434,6 +441,14 @@ def choose_external(p, s, st, sc, k, rule):
     pick = p.kp[r, st.kind[s.ist[r, PART]], KPICK]
     _schedule(s, r, now + (fs[r, TAPP] + pick), NORMAL, PC_APPROACH)
     gs[STATUS] = 0
+
+
+@compiled()
+def decline_external(p, s, st):
+    """The caller's answer to ST_CHOOSE when its policy picks nothing: a NooP."""
+    r = s.gs[DROBOT]
+    _noop(p, s, st, r, s.fs[r, T0])
+    s.gs[STATUS] = 0
 
 
 @compiled(inline=True)
