@@ -151,6 +151,9 @@ class Tuned:
             "best_rule": self.rule.row(),
             "lookahead": self.lookahead.row(),
             "trials": len(self.trials),
+            "duration": self.scenario.duration,
+            "warmup": self.scenario.warmup,
+            "termination": self.scenario.termination,
             "answer": self.answer(),
         }
 
