@@ -62,6 +62,17 @@ def _first(ordered: pd.DataFrame, starts: np.ndarray, columns: list[str]) -> dic
     return {c: ordered[c].iloc[starts].to_numpy() for c in columns}
 
 
+def kind_kpis(results: pd.DataFrame) -> list[str]:
+    """On a line with kinds of part: the value rate and each kind's gripping rate (%), also
+    summarised (lines of one kind have neither column, and their summary is unchanged)."""
+    kinds = [
+        c
+        for c in results.columns
+        if c.startswith("kind_") and c.endswith("_gripping_rate") and results[c].notna().any()
+    ]  # a kind no robot picks has no gripping rate: left out
+    return (["value_rate"] if "value_rate" in results.columns else []) + kinds
+
+
 def summarise(results: pd.DataFrame, grid: Sequence[str], confidence: float = 0.95) -> pd.DataFrame:
     """One row per point x policy: grid columns, policy, n, and mean/CI of each KPI
     (vectorised; the same doubles as a t_interval per group)."""
@@ -71,11 +82,11 @@ def summarise(results: pd.DataFrame, grid: Sequence[str], confidence: float = 0.
     columns = ["point", *grid, "policy"]
     out: dict[str, Any] = _first(ordered, starts, columns)
     out["n"] = counts.astype(np.int64)
-    for kpi in KPIS:
+    for kpi in (*KPIS, *kind_kpis(results)):
         values = ordered[kpi].to_numpy(dtype=float)
         mean, low, high = grouped_intervals(values, starts, counts, confidence)
-        if kpi in BOUNDS:  # a bounded KPI: its interval cannot leave the bounds
-            lo, hi = BOUNDS[kpi]
+        if kpi in BOUNDS or kpi not in KPIS:  # bounded: its interval cannot leave the bounds
+            lo, hi = BOUNDS.get(kpi, (0.0, 100.0))
             low = np.where(lo > low, lo, low)  # max(low, lo), NaN kept as Python's max does
             high = np.where(hi < high, hi, high)
         out.update({f"{kpi}_mean": mean, f"{kpi}_ci_low": low, f"{kpi}_ci_high": high})

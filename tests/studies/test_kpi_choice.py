@@ -305,3 +305,29 @@ def test_headroom_on_a_line_of_valued_kinds_compares_val_and_the_lookahead(tmp_p
     assert rate["VAL"] > rate["FIFO"]  # FIFO lets cans pass to the PET-only robots
     assert got["best_rule"]["policy"] == "VAL"
     assert 0.0 < got["lookahead"]["gripping_rate"] <= 100.0
+
+
+def test_a_sweep_of_a_line_with_kinds_summarises_the_value_rate_and_each_kind(
+    tmp_path: Path,
+) -> None:
+    from pnp_twin.studies.summary import summarise
+
+    rows = []
+    for seed in (0, 1, 2):
+        k = simulate(waste(duration=12.0), make_policy("VAL", 6), seed=seed).kpis
+        from pnp_twin.twin.kpis import flat_kpis
+
+        rows.append({"point": 0, "policy": "VAL", **flat_kpis(k)})
+    summary = summarise(pd.DataFrame(rows), [])
+    values = [r["value_rate"] for r in rows]
+    assert summary["value_rate_mean"].iloc[0] == pytest.approx(np.mean(values))
+    assert summary["value_rate_ci_low"].iloc[0] <= np.mean(values) <= 100.0
+    assert "kind_can_gripping_rate_mean" in summary and "kind_PET_gripping_rate_mean" in summary
+    assert "kind_residual_gripping_rate_mean" not in summary  # no robot picks it
+    one = summarise(
+        pd.DataFrame([{**rows[0], "value_rate": None}]).drop(
+            columns=[c for c in rows[0] if c.startswith("kind_") or c == "value_rate"]
+        ),
+        [],
+    )
+    assert not any(c.startswith(("value_rate", "kind_")) for c in one.columns)
