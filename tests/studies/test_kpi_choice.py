@@ -311,12 +311,11 @@ def test_a_sweep_of_a_line_with_kinds_summarises_the_value_rate_and_each_kind(
     tmp_path: Path,
 ) -> None:
     from pnp_twin.studies.summary import summarise
+    from pnp_twin.twin.kpis import flat_kpis
 
     rows = []
     for seed in (0, 1, 2):
         k = simulate(waste(duration=12.0), make_policy("VAL", 6), seed=seed).kpis
-        from pnp_twin.twin.kpis import flat_kpis
-
         rows.append({"point": 0, "policy": "VAL", **flat_kpis(k)})
     summary = summarise(pd.DataFrame(rows), [])
     values = [r["value_rate"] for r in rows]
