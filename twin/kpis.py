@@ -231,10 +231,12 @@ def tally(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) 
     is_picked = parts.picked[win]
     robot_of = np.where(parts.picked, parts.robot, -1)[win]
     cycles = (parts.placed_at[win] - parts.decided_at[win])[is_picked]
-    if np.isnan(cycles).any():  # parts still held for an outfeed slot at the end: no cycle
-        cycles = cycles[~np.isnan(cycles)]
     mine = robot_of[is_picked]
-    order = np.argsort(mine, kind="stable")
+    cycled = mine  # the robots of the cycles
+    if np.isnan(cycles).any():  # parts still held for an outfeed slot at the end: no cycle
+        cycled = mine[~np.isnan(cycles)]
+        cycles = cycles[~np.isnan(cycles)]
+    order = np.argsort(cycled, kind="stable")
     start = spans.start
     noops = (spans.state == SPAN_STATES.index("noop")) & (start >= w0) & (start < w1)
     fed = parts.fed_at
@@ -249,7 +251,7 @@ def tally(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) 
         states=state_times(parts, spans, n, w0, w1),
         cycles=cycles,
         robot_cycles=cycles[order],
-        robot_starts=np.searchsorted(mine[order], np.arange(n + 1)),
+        robot_starts=np.searchsorted(cycled[order], np.arange(n + 1)),
         rules=np.bincount(parts.rule[win & parts.picked] + 1, minlength=len(parts.rule_names) + 1),
         noops=int(noops.sum()),
         welch_parts=np.bincount(k, minlength=WELCH_BINS),

@@ -432,12 +432,15 @@ class OutfeedConfig(Frozen):
                     f"allowed |dx| <= {half_l:g}, |dy| <= {half_w:g}"
                 )
         if self.spacing < self.container_length - 1e-12:
+            if self.pitch is not None:
+                allowed = f"give a pitch of at least {self.container_length:g} m"
+            else:
+                most = self.speed / self.container_length
+                allowed = f"give a rate of at most {most:.4g} containers/s (speed / length)"
             field = "pitch" if self.pitch is not None else "rate"
             raise ValueError(
                 f"outfeed.{field}: containers {self.spacing:g} m apart are shorter than a "
-                f"container (outfeed.container_length = {self.container_length:g} m); give "
-                f"a pitch of at least {self.container_length:g} m"
-                + ("" if self.pitch is not None else " (rate <= speed / container_length)")
+                f"container (outfeed.container_length = {self.container_length:g} m); {allowed}"
             )
         return self
 
