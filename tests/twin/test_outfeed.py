@@ -269,3 +269,12 @@ def test_both_shipped_lines_differ_only_in_direction() -> None:
     assert a["outfeed"].pop("direction") == "co" and b["outfeed"].pop("direction") == "counter"
     assert a == b
     assert np.isfinite(run(co).kpis["fill_rate"])
+
+
+def test_a_study_may_sweep_the_outfeeds_fields() -> None:
+    from pnp_twin.studies.plan import field_path_error
+
+    assert field_path_error("outfeed.speed") is None
+    assert field_path_error("outfeed.direction") is None
+    assert "is a section" in str(field_path_error("outfeed"))
+    assert "not a scenario field" in str(field_path_error("outfeed.sped"))
