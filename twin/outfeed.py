@@ -139,9 +139,11 @@ class Outfeed:
         when no free slot of an entered container is reachable."""
         p = self.plan
         u, gap = p.u, p.gap
-        last = math.floor(now / gap)  # the newest container that has entered
+        last = math.floor(now / gap)  # the newest container that has entered (c gap <= now)
         while last * gap > now:
             last -= 1
+        while (last + 1) * gap <= now:
+            last += 1
         best: Slot | None = None
         lo, hi = p.lo[robot], p.hi[robot]
         for c in range(last, -1, -1):  # newest first: older ones are further along

@@ -55,6 +55,8 @@ def _nearest_slot(p, s, r, tx, ty, now, place):
     last = math.floor(now / gap)
     while last * gap > now:
         last -= 1
+    while (last + 1) * gap <= now:
+        last += 1
     best_c = -1
     best_k = -1
     best_t = math.inf
