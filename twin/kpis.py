@@ -356,6 +356,7 @@ def outfeed_kpis(
     return {
         "containers": boxes,
         "containers_full": full,
+        "containers_unfilled": boxes - full,  # left the last robot's reach with a free slot
         "fill_rate": 100.0 * full / boxes if boxes else math.nan,
         "slots_filled_per_s": float(filled[inside].sum()) / span,
         "parts_held": int((win & ~np.isnan(held_at)).sum()),

@@ -151,6 +151,7 @@ def test_the_outfeed_kpis_add_up() -> None:
     k = result.kpis
     span = k["window"][1] - k["window"][0]
     assert 0 < k["containers_full"] <= k["containers"]
+    assert k["containers_unfilled"] == k["containers"] - k["containers_full"] == 0  # scarce
     assert k["fill_rate"] == pytest.approx(100.0 * k["containers_full"] / k["containers"])
     assert k["hold_time"] > 0 and k["parts_held"] > 0
     spans = result.spans
@@ -168,10 +169,10 @@ def test_the_outfeed_kpis_add_up() -> None:
 
 def test_the_fill_rate_falls_when_the_outfeed_runs_too_fast_for_the_robots() -> None:
     for name in LINES:
-        fill = {
-            u: run(scenario(name, **{"outfeed.speed": u})).kpis["fill_rate"] for u in (0.3, 0.6)
-        }
+        kpis = {u: run(scenario(name, **{"outfeed.speed": u})).kpis for u in (0.3, 0.6)}
+        fill = {u: k["fill_rate"] for u, k in kpis.items()}
         assert fill[0.6] < fill[0.3] - 30.0, fill  # twice the slots the robots can fill
+        assert kpis[0.6]["containers_unfilled"] > kpis[0.3]["containers_unfilled"]
 
 
 def test_lines_without_an_outfeed_have_none_of_its_keys_or_columns() -> None:
