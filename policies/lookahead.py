@@ -222,6 +222,11 @@ class Lookahead:
 
     def bind_run(self, scenario: Scenario, seed: int, duration: float) -> None:
         """The run this controller decides for (called by the line after ``reset``)."""
+        if scenario.outfeed is not None:
+            raise LookaheadError(
+                "outfeed: the lookahead's rollouts run lines with bins only; use a rule "
+                "(e.g. SPT) on a line with an outfeed"
+            )
         self._run = (scenario, int(seed), float(duration))
         self._copy = None
 

@@ -124,6 +124,16 @@ def intercept_time(
     return hi
 
 
+def place_intercept(
+    dx: float, dy: float, velocity: float, arm_speed: float, acceleration: float = 0.0
+) -> float:
+    """Earliest T >= 0 at which a tool reaches a slot of the outfeed now at offset (dx, dy)
+    from it: the pick's interception (:func:`intercept_time`) with the outfeed's signed
+    ``velocity`` (negative for counter-flow) in place of the belt speed; the closed form
+    (dx + u T)^2 + dy^2 = (v_r T)^2 holds for either sign of u."""
+    return intercept_time(dx, dy, velocity, arm_speed, acceleration)
+
+
 def position_along(
     start: tuple[float, float],
     end: tuple[float, float],

@@ -44,6 +44,7 @@ import numpy as np
 
 from pnp_twin.twin.decision import RobotSpec
 from pnp_twin.twin.geometry import move_time
+from pnp_twin.twin.outfeed import OutfeedPlan
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -51,7 +52,7 @@ if TYPE_CHECKING:
     from pnp_twin.twin.records import Recorder
 
 STATES = ("busy", "noop", "wait", "blocked", "down")
-SPAN_STATES = ("wait", "interrupted", "noop", "blocked", "down")
+SPAN_STATES = ("wait", "interrupted", "noop", "blocked", "down", "holding")
 """The states a span records, in the order of :attr:`SpanRecords.state`'s codes."""
 PERCENTILES = (50, 95)  # of the cycle times: cycle_time_p50 and cycle_time_p95
 WELCH_BINS = 60  # the feeding period [0, duration) in this many bins, warm-up included
@@ -71,6 +72,8 @@ class PartRecords:
     picked: np.ndarray  # bool
     kind: np.ndarray | None = None  # int kind codes (None: one kind)
     counted: np.ndarray | None = None  # bool: in G's scope (None: every part)
+    container: np.ndarray | None = None  # int: the outfeed container placed into, -1 none
+    held_at: np.ndarray | None = None  # float: when a hold for a free slot began, NaN none
 
 
 @dataclass(frozen=True)
@@ -116,6 +119,9 @@ def recorder_records(
         np.asarray(rec.placed_at, dtype=float),
         ~np.isnan(np.asarray(rec.picked_at, dtype=float)),
     )
+    if rec.outfeed:
+        container = np.asarray(rec.container, dtype=np.int64)
+        parts = replace(parts, container=container, held_at=np.asarray(rec.held_at, dtype=float))
     state = {name: i for i, name in enumerate(SPAN_STATES)}
     spans = rec.spans
     return parts, SpanRecords(
@@ -144,6 +150,12 @@ def table_records(parts: pd.DataFrame, spans: pd.DataFrame) -> tuple[PartRecords
         parts["placed_at"].to_numpy(dtype=float),
         picked,
     )
+    if "container" in parts.columns:  # a line with an outfeed
+        part_records = replace(
+            part_records,
+            container=parts["container"].to_numpy(dtype=float, na_value=-1.0).astype(np.int64),
+            held_at=parts["held_at"].to_numpy(dtype=float),
+        )
     state = {name: i for i, name in enumerate(SPAN_STATES)}
     return part_records, SpanRecords(
         spans["robot"].to_numpy(dtype=np.int64) - 1,
@@ -176,12 +188,15 @@ def state_times(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: f
     out = np.zeros((n, len(STATES)))
     picked = parts.picked
     if picked.any():
-        busy = clipped(parts.decided_at[picked], parts.placed_at[picked], w0, w1)
+        placed = parts.placed_at[picked]  # NaN: still held for a slot when the run ended
+        busy = clipped(parts.decided_at[picked], np.where(np.isnan(placed), w1, placed), w0, w1)
         np.add.at(out[:, 0], parts.robot[picked], busy)
     if len(spans.state):
         lengths = clipped(spans.start, spans.end, w0, w1)
         for j, state in enumerate(STATES):
             mask = spans.state == SPAN_STATES.index("interrupted" if state == "busy" else state)
+            if state == "blocked":  # holding a part for a free outfeed slot blocks the robot
+                mask |= spans.state == SPAN_STATES.index("holding")
             np.add.at(out[:, j], spans.robot[mask], lengths[mask])
         # blocked time sits inside the busy cycle span: move it out of busy
         out[:, 0] -= out[:, STATES.index("blocked")]
@@ -217,7 +232,11 @@ def tally(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) 
     robot_of = np.where(parts.picked, parts.robot, -1)[win]
     cycles = (parts.placed_at[win] - parts.decided_at[win])[is_picked]
     mine = robot_of[is_picked]
-    order = np.argsort(mine, kind="stable")
+    cycled = mine  # the robots of the cycles
+    if np.isnan(cycles).any():  # parts still held for an outfeed slot at the end: no cycle
+        cycled = mine[~np.isnan(cycles)]
+        cycles = cycles[~np.isnan(cycles)]
+    order = np.argsort(cycled, kind="stable")
     start = spans.start
     noops = (spans.state == SPAN_STATES.index("noop")) & (start >= w0) & (start < w1)
     fed = parts.fed_at
@@ -232,7 +251,7 @@ def tally(parts: PartRecords, spans: SpanRecords, n: int, w0: float, w1: float) 
         states=state_times(parts, spans, n, w0, w1),
         cycles=cycles,
         robot_cycles=cycles[order],
-        robot_starts=np.searchsorted(mine[order], np.arange(n + 1)),
+        robot_starts=np.searchsorted(cycled[order], np.arange(n + 1)),
         rules=np.bincount(parts.rule[win & parts.picked] + 1, minlength=len(parts.rule_names) + 1),
         noops=int(noops.sum()),
         welch_parts=np.bincount(k, minlength=WELCH_BINS),
@@ -249,14 +268,25 @@ def compute_kpis(
     warmup: float,
     duration: float,
     kinds: KindTable | None = None,
+    outfeed: OutfeedPlan | None = None,
 ) -> dict[str, Any]:
     """The KPI dictionary of one run (see the module docstring for definitions); with
     ``kinds`` (a line with feeder.kinds; ``parts`` carry their kind codes) the per-kind
-    figures too."""
+    figures too; with ``outfeed`` (``parts`` carry their containers) the outfeed's."""
     sums = tally(parts, spans, len(specs), warmup, duration)
     kpis = tally_kpis(sums, parts.rule_names, specs, warmup, duration)
     if kinds is not None:
         kpis.update(kind_kpis(kinds, parts, warmup, duration))
+    if outfeed is not None:
+        assert parts.container is not None and parts.held_at is not None
+        figures = outfeed_kpis(
+            outfeed, parts, parts.container, parts.held_at, spans, len(specs), warmup, duration
+        )
+        for robot, hold in zip(kpis["robots"], figures.pop("robot_hold"), strict=True):
+            robot["hold"] = hold
+        robots = kpis.pop("robots")
+        kpis.update(figures)
+        kpis["robots"] = robots  # last, as on every line
     return kpis
 
 
@@ -294,6 +324,46 @@ def kind_kpis(kinds: KindTable, parts: PartRecords, w0: float, w1: float) -> dic
         "value_rate": 100.0 * taken / worth if worth > 0 else math.nan,
         "parts_passed_by_design": sum(k["parts_passed_by_design"] for k in out.values()),
         "kinds": out,
+    }
+
+
+def outfeed_kpis(
+    plan: OutfeedPlan,
+    parts: PartRecords,
+    container: np.ndarray,
+    held_at: np.ndarray,
+    spans: SpanRecords,
+    n: int,
+    w0: float,
+    w1: float,
+) -> dict[str, Any]:
+    """The outfeed's figures over the window (a line with [outfeed]): containers that
+    entered in it, how many left full, the slots filled in them per second, the parts of
+    the window that waited for a slot, the seconds robots held parts (line and per robot)
+    and the parts still held when the run ended."""
+    span = w1 - w0
+    gap, n_slots = plan.gap, plan.n_slots
+    entered = np.arange(int(math.floor(w1 / gap)) + 2) * gap
+    inside = np.flatnonzero((entered >= w0) & (entered < w1))
+    placed = container >= 0
+    filled = np.bincount(container[placed], minlength=len(entered))[: len(entered)]
+    full = int((filled[inside] == n_slots).sum())
+    win = (parts.fed_at >= w0) & (parts.fed_at < w1)
+    holding = spans.state == SPAN_STATES.index("holding")
+    held_s = np.zeros(n)
+    np.add.at(held_s, spans.robot[holding], clipped(spans.start, spans.end, w0, w1)[holding])
+    boxes = len(inside)
+    return {
+        "containers": boxes,
+        "containers_full": full,
+        "containers_unfilled": boxes - full,  # left the last robot's reach with a free slot
+        "fill_rate": 100.0 * full / boxes if boxes else math.nan,
+        "slots_filled_per_s": float(filled[inside].sum()) / span,
+        "parts_held": int((win & ~np.isnan(held_at)).sum()),
+        "parts_held_at_end": int((win & parts.picked & ~placed).sum()),
+        "hold_time": float(held_s.sum()),
+        "hold": float(held_s.sum() / (span * n)),
+        "robot_hold": (held_s / span).tolist(),
     }
 
 
@@ -402,6 +472,7 @@ def table_kpis(
     warmup: float,
     duration: float,
     kinds: KindTable | None = None,
+    outfeed: OutfeedPlan | None = None,
 ) -> dict[str, Any]:
     """:func:`compute_kpis` of record tables (``Recorder.parts_frame`` / ``spans_frame``)."""
     part_records, span_records = table_records(parts, spans)
@@ -409,7 +480,7 @@ def table_kpis(
         code = {name: c for c, name in enumerate(kinds.names)}
         codes = np.array([code[k] for k in parts["kind"]], dtype=np.int64)
         part_records = kinds.with_records(part_records, codes)
-    return compute_kpis(part_records, span_records, specs, warmup, duration, kinds)
+    return compute_kpis(part_records, span_records, specs, warmup, duration, kinds, outfeed)
 
 
 def flat_kpis(kpis: dict[str, Any]) -> dict[str, Any]:

@@ -16,6 +16,7 @@ from pnp_twin.twin.bin import Bin
 from pnp_twin.twin.decision import Policy
 from pnp_twin.twin.feeder import Feeder, PartStream
 from pnp_twin.twin.gateway import Gateway
+from pnp_twin.twin.outfeed import Outfeed
 from pnp_twin.twin.plan import (
     ARRIVALS,
     DRAIN_SLACK,
@@ -71,7 +72,8 @@ class Line:
         if parts is None:
             parts = self.feeder.stream(self.duration)
         self.belt.load(*parts, plan.kind_codes(parts[2], len(parts[0])))
-        self.recorder = Recorder(len(self.belt))
+        self.recorder = Recorder(len(self.belt), outfeed=plan.outfeed is not None)
+        self.outfeed = None if plan.outfeed is None else Outfeed(plan.outfeed)
         # the feeder first: at a shared instant it puts parts on the belt before robots look
         self.env.process(self.feeder.feeding(self.env, self.belt))
         self.env.process(self.belt.conveying(self.env, self.recorder))
@@ -95,6 +97,7 @@ class Line:
                 Bin(self.env, spec.bin, plan.capacity, plan.change_time) for _ in plan.kinds
             ]  # one bin (chute) per kind, at the robot's bin position
             robot = Robot(self.env, spec, self.belt, bins[0], self.recorder, failures, rp, bins)
+            robot.outfeed = self.outfeed
             self.robots.append(robot)
         self.gateway.robots = self.robots
         if plan.rivals:  # facing robots: each knows the others whose x-range meets its own

@@ -26,6 +26,7 @@ from pnp_twin.twin.decision import RobotSpec
 from pnp_twin.twin.gateway import SCHEMES
 from pnp_twin.twin.geometry import bin_position, intercept_quad, mount_position
 from pnp_twin.twin.kpis import KindTable
+from pnp_twin.twin.outfeed import OutfeedPlan
 from pnp_twin.twin.scenario import Scenario
 
 RULES = ("FIFO", "LIFO", "SIRO", "SD", "LD", "SPT", "VAL")
@@ -86,12 +87,13 @@ def rivals(specs: list[RobotSpec]) -> bool:
     return any(overlap(a, b) for i, a in enumerate(specs) for b in specs[i + 1 :])
 
 
-def reach_margin(spec: RobotSpec) -> float:
+def reach_margin(spec: RobotSpec, place_ys: tuple[float, ...] = ()) -> float:
     """``x_lo``: upstream parts can only be intercepted inside [a, b] when the tool is far
-    from them; beyond this margin the tool always meets them before x = a."""
+    from them; beyond this margin the tool always meets them before x = a. ``place_ys``:
+    where else across the belt the tool may stand (an outfeed's slots, placed inside [a, b])."""
     a, b = spec.workspace
     xs = (a, b, spec.bin[0])
-    ys = (0.0, spec.belt_width, spec.bin[1])
+    ys = (0.0, spec.belt_width, spec.bin[1], *place_ys)
     reach = math.hypot(max(xs) - min(xs), max(ys) - min(ys))
     return a - reach * spec.belt_speed / spec.arm_speed
 
@@ -134,6 +136,7 @@ class LinePlan:
     values: tuple[float, ...] = (1.0,)  # each kind's value per part
     targeted: tuple[bool, ...] = (True,)  # each kind: some robot picks it
     rivals: bool = False  # some robots' x-ranges overlap (facing robots compete)
+    outfeed: OutfeedPlan | None = None  # robots place onto an outfeed (None: into bins)
 
     @classmethod
     def of(
@@ -146,6 +149,10 @@ class LinePlan:
         robots = []
         specs = robot_specs(scenario)
         facing = rivals(specs)
+        out = scenario.outfeed
+        place_ys: tuple[float, ...] = ()
+        if out is not None:
+            place_ys = tuple(out.y + dy for _, dy in out.slots)
         order = [0] * len(specs)
         if facing:  # ties between facing robots: a random order, not the robots' numbers
             seeds = np.random.SeedSequence(seed).spawn(FIRST_ROBOT + len(specs) + 2)
@@ -156,7 +163,7 @@ class LinePlan:
             robots.append(
                 RobotPlan(
                     spec=spec,
-                    x_lo=reach_margin(spec),
+                    x_lo=reach_margin(spec, place_ys),
                     quad=intercept_quad(spec.arm_speed, spec.belt_speed),
                     base=((a + end) / 2.0, b.width / 2.0),
                     mtbf=scenario.robot_param(i, "mtbf"),
@@ -184,6 +191,7 @@ class LinePlan:
             values=tuple(k.value for k in kinds) or (1.0,),
             targeted=tuple(any(s.picks[c] for s in specs) for c in range(len(kinds))) or (True,),
             rivals=facing,
+            outfeed=None if out is None else OutfeedPlan.of(out, specs),
         )
 
     @property
@@ -206,9 +214,11 @@ class LinePlan:
 
     def new_shape(self) -> str | None:
         """The first setting beyond the paper's line shape (one kind, one side, no reach
-        limit), or None: what the engines support but some tools (vector envs, rollouts)
-        refuse."""
+        limit, bins rather than an outfeed), or None: what the engines support but some
+        tools (vector envs, rollouts) refuse."""
         sc = self.scenario
+        if sc.outfeed is not None:
+            return "outfeed"
         if sc.feeder.kinds:
             return "feeder.kinds"
         for name, plain in (("side", "upper"), ("reach", 0.0), ("kinds", ())):

@@ -48,6 +48,8 @@ PART_COLUMNS = [
     "blocked_time",
     "left_at",
 ]
+OUTFEED_COLUMNS = ["container", "slot", "held_at", "hold_time"]
+"""Appended to the parts table on a line with an outfeed (and only there)."""
 SPAN_COLUMNS = ["robot", "state", "start", "end"]
 
 
@@ -57,7 +59,9 @@ class Recorder:
     Robots, the gateway and the belt report through its methods; the lists are read only.
     """
 
-    def __init__(self, n_parts: int) -> None:
+    def __init__(self, n_parts: int, outfeed: bool = False) -> None:
+        """``outfeed``: the line places onto an outfeed; each part's container, slot and
+        hold are recorded too (:data:`OUTFEED_COLUMNS`)."""
         nan = math.nan
         self.robot = [-1] * n_parts
         self.rule: list[str | None] = [None] * n_parts
@@ -69,6 +73,11 @@ class Recorder:
         self.spans: list[tuple[int, str, float, float]] = []
         self.decisions: Counter[tuple[int, str]] = Counter()
         self.open: dict[int, tuple[str, float]] = {}  # robot -> (state, since): not yet ended
+        self.outfeed = outfeed
+        self.container = [-1] * n_parts if outfeed else []
+        self.slot = [-1] * n_parts if outfeed else []
+        self.held_at = [nan] * n_parts if outfeed else []  # a hold for a free slot began
+        self.hold_time = [0.0] * n_parts if outfeed else []  # s it lasted (once placed)
 
     def begin(self, robot: int, state: str, start: float) -> None:
         """A long state (down, wait) starts: kept open so a run ending inside it counts it."""
@@ -108,6 +117,16 @@ class Recorder:
         if blocked > 0.0:
             self.blocked[part] = blocked
 
+    def held(self, part: int, at: float) -> None:
+        """``part``'s robot found no free slot in reach at ``at`` and holds it."""
+        self.held_at[part] = at
+
+    def slotted(self, part: int, container: int, slot: int, hold_time: float) -> None:
+        """``part`` goes into ``slot`` of ``container`` after holding ``hold_time`` s."""
+        self.container[part] = container
+        self.slot[part] = slot
+        self.hold_time[part] = hold_time
+
     def missed(self, part: int, at: float) -> None:
         """``part`` passed the end of the last workspace unpicked at ``at`` (the belt)."""
         self.missed_at[part] = at
@@ -143,6 +162,12 @@ class Recorder:
             columns=PART_COLUMNS,
         )
         df.loc[df["robot"] < 0, "robot"] = pd.NA
+        if self.outfeed:
+            df["container"] = pd.array(np.asarray(self.container, dtype=np.int64), dtype="Int64")
+            df["slot"] = pd.array(np.asarray(self.slot, dtype=np.int64), dtype="Int64")
+            df.loc[df["container"] < 0, ["container", "slot"]] = pd.NA
+            df["held_at"] = np.asarray(self.held_at, dtype=float)
+            df["hold_time"] = np.asarray(self.hold_time, dtype=float)
         return df
 
     def spans_frame(self) -> pd.DataFrame:

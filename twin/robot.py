@@ -20,6 +20,7 @@ from pnp_twin.twin.geometry import (
     move_time,
     position_along,
 )
+from pnp_twin.twin.outfeed import Outfeed
 from pnp_twin.twin.plan import RobotPlan, reach_margin
 from pnp_twin.twin.records import Recorder
 
@@ -113,6 +114,7 @@ class Robot:
         self.claimed_at = -math.inf  # decision time of the current claim
         self.gateway: Gateway | None = None
         self.process: simpy.Process | None = None
+        self.outfeed: Outfeed | None = None  # set by the line: place onto it, not the bin
 
     def start(self, gateway: Gateway) -> None:
         """Start the robot's process, reporting to ``gateway``."""
@@ -286,6 +288,9 @@ class Robot:
                 continue
             self.claimed = -1
             rec.picked(part, me, rule, t0, t0 + t)
+            if self.outfeed is not None:
+                yield from self._placing(self.outfeed, part, spec.place_of(kind), (tx, ty))
+                continue
             dist = math.hypot(bx - tx, by - ty)
             arrive = env.now + (dist / v_r if acc <= 0.0 else move_time(dist, v_r, acc))
             blocked, done = self.bins[kind].place(arrive, spec.place_of(kind))
@@ -295,6 +300,38 @@ class Robot:
             yield timeout(done - env.now)
             self.tool = self.bin.position
             self.busy = False
+
+    def _placing(
+        self, outfeed: Outfeed, part: int, place: float, grip: tuple[float, float]
+    ) -> Generator[simpy.Event, Any, None]:
+        """The place leg onto the outfeed: to the free slot met soonest (reserved now,
+        filled ``place`` s after the tool meets it, the tool moving with it meanwhile). With
+        no free slot in reach the robot holds the part at the grip point until the next
+        slot enters its place interval (:meth:`OutfeedPlan.next_entry`), then tries again."""
+        env, rec, me = self.env, self.recorder, self.index
+        self.tool = grip
+        held_from = -math.inf
+        while True:
+            slot = outfeed.nearest(me, self.spec, grip, env.now, place)
+            if slot is not None:
+                break
+            if held_from == -math.inf:
+                held_from = env.now
+                rec.begin(me, "holding", held_from)
+                rec.held(part, held_from)
+            wake = outfeed.plan.next_entry(me, env.now)
+            if wake == math.inf:  # no slot will ever come: hold to the end of the run
+                yield env.event()
+            yield env.timeout(wake - env.now)
+        if held_from > -math.inf:
+            rec.span(me, "holding", held_from, env.now)
+        outfeed.reserve(slot)
+        done = env.now + slot.t + place
+        rec.placed(part, done, 0.0)
+        rec.slotted(part, slot.c, slot.k, env.now - held_from if held_from > -math.inf else 0.0)
+        yield env.timeout(done - env.now)
+        self.tool = (slot.x + outfeed.plan.u * place, slot.y)
+        self.busy = False
 
     def _noop(self) -> Generator[simpy.Event, Any, None]:
         """Wait until the next part enters the workspace or one belt tick, if sooner."""

@@ -43,7 +43,9 @@ def simulate(
     kinds = line.plan.kind_table()
     if kinds is not None:
         parts = kinds.with_records(parts, np.asarray(belt.kind_code, dtype=np.int64))
-    kpis = compute_kpis(parts, spans, line.specs, scenario.warmup, line.duration, kinds)
+    kpis = compute_kpis(
+        parts, spans, line.specs, scenario.warmup, line.duration, kinds, line.plan.outfeed
+    )
     builders = {
         "parts": lambda: rec.parts_frame(belt, last_end),
         "spans": rec.spans_frame,

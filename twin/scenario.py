@@ -375,6 +375,93 @@ class BinsConfig(Frozen):
     )
 
 
+Slot = tuple[Annotated[Real, Field(ge=-10, le=10)], Annotated[Real, Field(ge=-10, le=10)]]
+
+
+class OutfeedConfig(Frozen):
+    """A second conveyor the robots place onto instead of their bins: containers (trays)
+    of ``slots`` carried at ``speed`` along x, co-flow (+x, like the infeed) or
+    counter-flow (-x). A container's centre enters at the upstream end of the robots' span
+    (co-flow: the smallest a_i) or at its downstream end (counter-flow: the largest b_i)."""
+
+    speed: Annotated[Real, MIN_SPEED] = num(
+        0.3, "m/s", "Outfeed speed in m/s (> 0; the direction says which way).", gt=0, le=10
+    )
+    direction: Literal["co", "counter"] = Field(
+        "co", description="co: moves +x like the infeed; counter: moves -x."
+    )
+    pitch: Annotated[Real, MIN_LENGTH] | None = num(
+        None, "m", "Distance between containers in m (give pitch or rate).", gt=0, le=100
+    )
+    rate: Annotated[Real, least(0.001, "containers/s", "one in 1000 s")] | None = num(
+        None, "containers/s", "Containers per second, evenly spaced (give pitch or rate).",
+        gt=0, le=100,
+    )  # fmt: skip
+    slots: tuple[Slot, ...] = Field(
+        ((0.0, 0.0),),
+        min_length=1,
+        max_length=1000,
+        description="Slots as [dx, dy] offsets in m from the container's centre (dx along "
+        "the infeed's x, dy across), in the order slots are numbered.",
+        json_schema_extra={"unit": "m"},
+    )
+    container_length: Annotated[Real, MIN_LENGTH] = num(
+        0.3, "m", "Container length along the outfeed in m.", gt=0, le=100
+    )
+    container_width: Annotated[Real, MIN_LENGTH] = num(
+        0.2, "m", "Container width across the outfeed in m.", gt=0, le=100
+    )
+    y: Annotated[Real, Field(ge=-100, le=100)] = num(
+        0.8, "m", "The outfeed's centre line, y in the infeed's frame (m)."
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> OutfeedConfig:
+        if (self.pitch is None) == (self.rate is None):
+            given = "both" if self.pitch is not None else "neither"
+            raise ValueError(
+                f"outfeed.pitch: {given} of outfeed.pitch and outfeed.rate given; give "
+                "exactly one (pitch in m, or rate in containers/s)"
+            )
+        half_l, half_w = self.container_length / 2.0, self.container_width / 2.0
+        for k, (dx, dy) in enumerate(self.slots, start=1):
+            if abs(dx) > half_l + 1e-12 or abs(dy) > half_w + 1e-12:
+                raise ValueError(
+                    f"outfeed.slots: slot {k} [{dx:g}, {dy:g}] lies outside the "
+                    f"{self.container_length:g} x {self.container_width:g} m container; "
+                    f"allowed |dx| <= {half_l:g}, |dy| <= {half_w:g}"
+                )
+        if self.spacing < self.container_length - 1e-12:
+            if self.pitch is not None:
+                allowed = f"give a pitch of at least {self.container_length:g} m"
+            else:
+                most = self.speed / self.container_length
+                allowed = f"give a rate of at most {most:.4g} containers/s (speed / length)"
+            field = "pitch" if self.pitch is not None else "rate"
+            raise ValueError(
+                f"outfeed.{field}: containers {self.spacing:g} m apart are shorter than a "
+                f"container (outfeed.container_length = {self.container_length:g} m); {allowed}"
+            )
+        return self
+
+    @property
+    def spacing(self) -> float:
+        """Distance between containers' centres in m."""
+        return self.pitch if self.pitch is not None else self.speed / float(self.rate or 1.0)
+
+    @property
+    def gap(self) -> float:
+        """Time between containers entering, s."""
+        return (
+            self.spacing / self.speed if self.pitch is not None else 1.0 / float(self.rate or 1.0)
+        )
+
+    @property
+    def sign(self) -> float:
+        """+1.0 for co-flow, -1.0 for counter-flow: the outfeed's velocity is sign * speed."""
+        return 1.0 if self.direction == "co" else -1.0
+
+
 def policy_key(name: str) -> str:
     """A policy name as the registry reads it: rules upper-case, a prefix lower-case."""
     text = name.strip()
@@ -483,6 +570,9 @@ class Scenario(Frozen):
     feeder: FeederConfig = FeederConfig()
     robots: RobotsConfig = RobotsConfig()
     bins: BinsConfig = BinsConfig()
+    outfeed: OutfeedConfig | None = Field(
+        None, description="Optional outfeed conveyor the robots place onto (instead of bins)."
+    )
     policy: Text = Field(
         "SD",
         min_length=1,
@@ -521,6 +611,7 @@ class Scenario(Frozen):
         self._check_arms()
         self._check_kinds()
         self._check_reach()
+        self._check_outfeed()
         f, w = self.feeder, self.belt.width
         if f.lateral_mean is not None and f.lateral_mean > w:
             raise ValueError(
@@ -611,6 +702,8 @@ class Scenario(Frozen):
                     f"base is {offset:g} m beyond the {side} edge); give more than {gap:g} m, "
                     "or 0 for no limit"
                 )
+            if self.outfeed is not None:
+                continue  # robots place onto the outfeed: their bins are not used
             bx, by = bin_position((a, b), w, self.robot_param(i, "bin_offset"), side)
             far = math.hypot(bx - base[0], by - base[1])
             if far > reach + 1e-9:
@@ -619,6 +712,36 @@ class Scenario(Frozen):
                     f"({far:.3g} m from its base); give at least {far:.3g} m, move the bin "
                     "(bin_offset), or 0 for no limit"
                 )
+
+    def _check_outfeed(self) -> None:
+        out = self.outfeed
+        if out is None:
+            return
+        if self.bins.capacity or self.bins.change_time:
+            raise ValueError(
+                "bins: capacity and change_time do not apply with [outfeed] (robots place "
+                "onto the outfeed, not into boxes); remove them"
+            )
+        w = self.belt.width
+        reachable = False
+        for i, (a, b) in enumerate(self.robots.layout(), start=1):
+            v_r = self.robot_param(i, "arm_speed")
+            if v_r <= out.speed:
+                raise ValueError(
+                    f"outfeed.speed: {out.speed:g} m/s is not below robot {i}'s arm_speed "
+                    f"({v_r:g} m/s), so no slot can be intercepted; give less than {v_r:g} m/s"
+                )
+            reach = self.robot_param(i, "reach")
+            side, offset = self.robot_param(i, "side"), self.robot_param(i, "base_offset")
+            my = mount_position((a, b), w, side, offset)[1]
+            if reach <= 0 or abs(out.y - my) <= reach:
+                reachable = True
+        if not reachable:
+            raise ValueError(
+                f"outfeed.y: no robot reaches an outfeed at y = {out.y:g} m (robots.reach "
+                "from each robot's base); move the outfeed nearer the robots, or give them "
+                "more reach"
+            )
 
     def robot_param(self, robot: int, name: str) -> Any:
         """Robot ``robot``'s (1-based) value of ``name``, its override if set."""

@@ -240,6 +240,21 @@ def kpi_table(result: RunResult) -> Table:
     )
     decisions = ", ".join(f"{rule} {n}" for rule, n in k["decisions"].items()) or "none"
     t.add_row("Decisions per rule", decisions)
+    if "fill_rate" in k:  # a line with an outfeed
+        t.add_row(
+            "Outfeed: containers full (fill rate)",
+            f"{k['containers_full']} of {k['containers']} ({_num(k['fill_rate'], '.1f', ' %')})",
+        )
+        t.add_row("Outfeed: slots filled", _num(k["slots_filled_per_s"], ".3f", " slots/s"))
+        at_end = f", {k['parts_held_at_end']} still held at the end" * bool(k["parts_held_at_end"])
+        t.add_row(
+            "Parts held for a slot / hold time",
+            f"{k['parts_held']} / {_num(k['hold_time'], '.1f', ' s')}{at_end}",
+        )
+        t.add_row(
+            "Hold per robot (blocked time)",
+            ", ".join(f"{r['robot']}: {_share(r['hold'])}" for r in k["robots"]) + " %",
+        )
     return t
 
 

@@ -15,7 +15,8 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from types import UnionType
+from typing import Any, get_args
 
 from pydantic import BaseModel
 
@@ -139,7 +140,8 @@ def field_path_error(path: str) -> str | None:
             allowed = ", ".join(f"{prefix + '.' if prefix else ''}{k}" for k in fields)
             return f"sweep.grid: '{path}' is not a scenario field; allowed {allowed}"
         ann = fields[key].annotation
-        model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+        options = get_args(ann) if isinstance(ann, UnionType) else (ann,)  # [outfeed]: or None
+        model = next((a for a in options if isinstance(a, type) and issubclass(a, BaseModel)), None)
     if model is not None:
         return f"sweep.grid: '{path}' is a section; sweep one of its fields ('{path}.…')"
     if path == "policy":  # every point runs every policy of the study

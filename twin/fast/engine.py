@@ -26,6 +26,7 @@ import copy
 import math
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -96,6 +97,20 @@ def _robot_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                 spec.value_of(k),
             )
     return fp, ip, kp
+
+
+def _outfeed_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's outfeed parameters (``og``, ``orb``; see layout): the plan's outfeed,
+    or ``og[OUT_ON] = 0`` and no slots on a line with bins."""
+    out = plan.outfeed
+    if out is None:
+        return np.zeros(L.N_OG), np.zeros((len(plan.robots), 0, L.N_ORB))
+    og = np.zeros(L.N_OG + 2 * out.n_slots)
+    og[L.OUT_ON], og[L.OUT_U], og[L.OUT_GAP] = 1.0, out.u, out.gap
+    og[L.OUT_XIN], og[L.OUT_Y], og[L.OUT_NS] = out.x_in, out.y, out.n_slots
+    og[L.N_OG :: 2], og[L.N_OG + 1 :: 2] = out.dx, out.dy
+    orb = np.stack([np.array(out.lo), np.array(out.hi), np.array(out.entry)], axis=-1)
+    return og, np.ascontiguousarray(orb, dtype=np.float64)
 
 
 STATE = ("ip", *State._fields, *Records._fields, "_c_i", "_c_f")
@@ -184,6 +199,7 @@ class FastLine:
         self.gi[L.SCHEME] = plan.scheme
         self.gi[L.CAPACITY] = plan.capacity
         self.gi[L.HOLD] = int(hold)
+        self.og, self.orb = _outfeed_params(plan)
         self.uses_siro = L.SIRO in codes
         self.breaks = bool(self.ip[:, L.FAILMODE].any())
 
@@ -285,11 +301,16 @@ class FastLine:
         self.holder.fill(-1)
         self.left_at = take("left_at", n_parts)
         self.left_at.fill(math.inf)
-        self.rec_i = take("rec_i", (n_parts, 2), np.int64)
+        out = self.plan.outfeed  # with an outfeed: container, slot; held at, hold time
+        self.rec_i = take("rec_i", (n_parts, 2 if out is None else 4), np.int64)
         self.rec_i.fill(-1)
-        self.rec_f = take("rec_f", (n_parts, 4))
+        self.rec_f = take("rec_f", (n_parts, 4 if out is None else 6))
         self.rec_f.fill(math.nan)  # not decided, picked, placed; blocked 0 s
         self.rec_f[:, 3] = 0.0  # (a fill and a column: a fifth of a row-tuple's assignment)
+        containers = 0 if out is None else int(self.end_at / out.gap) + 2
+        self.taken = np.zeros((containers, 0 if out is None else out.n_slots), dtype=np.int64)
+        if out is not None:
+            self.rec_f[:, 5] = 0.0
         # the span buffer owns its memory: it grows in place (ndarray.resize)
         self.sp_i = np.zeros((span_room, 2), dtype=np.int32)  # robot, state
         self.sp_f = np.zeros((span_room, 2))  # start, end
@@ -392,11 +413,13 @@ class FastLine:
     # -- the kernel's structures (views of the arrays above, built for each call) ----------
     @property
     def params(self) -> Params:
-        return Params(self.fp, self.ip, self.gp, self.gi, self.kp)
+        return Params(self.fp, self.ip, self.gp, self.gi, self.kp, self.og, self.orb)
 
     @property
     def state(self) -> State:
-        return State(self.fs, self.ist, self.gs, self.gf, self.holder, self.left_at, self.counts)
+        return State(
+            self.fs, self.ist, self.gs, self.gf, self.holder, self.left_at, self.counts, self.taken
+        )
 
     @property
     def records(self) -> Records:
@@ -432,6 +455,8 @@ class FastLine:
         kinds = self.plan.kind_table()
         if kinds is not None:
             parts = kinds.with_records(parts, self.kind_code)
+        if self.plan.outfeed is not None:
+            parts = replace(parts, container=self.rec_i[:, 2], held_at=self.rec_f[:, 4])
         spans = SpanRecords(
             robot=self.sp_i[:k, 0],
             state=codes[self.sp_i[:k, 1]],
@@ -445,9 +470,10 @@ class FastLine:
         :meth:`kpi_records`, with the sums taken in one compiled pass over the arrays."""
         from pnp_twin.twin.fast.tally import tally
 
-        kinds = self.plan.kind_table()
-        if kinds is not None:  # a line with kinds: the numpy sums, which know them
-            return compute_kpis(*self.kpi_records(), self.specs, warmup, self.duration, kinds)
+        kinds, out = self.plan.kind_table(), self.plan.outfeed
+        if kinds is not None or out is not None:  # kinds, an outfeed: the numpy sums
+            parts, spans = self.kpi_records()
+            return compute_kpis(parts, spans, self.specs, warmup, self.duration, kinds, out)
         names = (*L.RULE_NAMES, *self.extra_rules)
         n_spans, n = int(self.gs[L.NSPANS]), len(self.specs)
         sums = tally(self.fed, self.records, n_spans, n, len(names), warmup, self.duration)
@@ -464,6 +490,12 @@ class FastLine:
         rec.picked_at = self.rec_f[:, 1]  # type: ignore[assignment]
         rec.placed_at = self.rec_f[:, 2]  # type: ignore[assignment]
         rec.blocked = self.rec_f[:, 3]  # type: ignore[assignment]
+        if self.plan.outfeed is not None:
+            rec.outfeed = True
+            rec.container = self.rec_i[:, 2]  # type: ignore[assignment]
+            rec.slot = self.rec_i[:, 3]  # type: ignore[assignment]
+            rec.held_at = self.rec_f[:, 4]  # type: ignore[assignment]
+            rec.hold_time = self.rec_f[:, 5]  # type: ignore[assignment]
         k = int(self.gs[L.NSPANS])
         states = [L.SPAN_NAMES[s] for s in self.sp_i[:k, 1].tolist()]
         rec.spans = list(

@@ -39,6 +39,7 @@ from pnp_twin.twin.fast.layout import (
     EXPONENTIAL,
     FAILMODE,
     HOLD,
+    HOLD0,
     KPLACE,
     MTBF,
     MTTR,
@@ -49,11 +50,13 @@ from pnp_twin.twin.fast.layout import (
     NOW,
     NPENDING,
     NSPANS,
+    OUT_ON,
     PART,
     PC,
     PC_APPROACH,
     PC_DOWN,
     PC_HELD,
+    PC_HOLDING,
     PC_INTERRUPT,
     PC_NOOP,
     PC_PLACE,
@@ -67,6 +70,7 @@ from pnp_twin.twin.fast.layout import (
     RULENOW,
     S_BLOCKED,
     S_DOWN,
+    S_HOLDING,
     S_INTERRUPTED,
     S_NOOP,
     S_WAIT,
@@ -75,6 +79,8 @@ from pnp_twin.twin.fast.layout import (
     SIRO,
     SIRO_MARGIN,
     SIROIDX,
+    SLOTX,
+    SLOTY,
     SPAN_MARGIN,
     ST_EPOCH,
     ST_ROOM,
@@ -93,6 +99,7 @@ from pnp_twin.twin.fast.layout import (
     V,
 )
 from pnp_twin.twin.fast.mathlib import move_time, position_along, py_hypot
+from pnp_twin.twin.fast.outfeed import _place_onto
 from pnp_twin.twin.fast.robot import (
     FREE,
     _decide,
@@ -141,6 +148,7 @@ def run_events(p, s, rec, st, sc, stop_at):
     scheme = gi[SCHEME]
     capacity = gi[CAPACITY]
     waits = scheme != T_CONTINUE or gi[HOLD]  # a free robot reports to the gateway
+    outfeed = p.og[OUT_ON] > 0.0  # robots place onto an outfeed, not into their bins
     m = _calendar(s)  # the callers may have scheduled robots since the last call
     while gs[STATUS] == 0:
         r = _first(s)  # the robot whose wake-up comes first (-1: none)
@@ -174,35 +182,48 @@ def run_events(p, s, rec, st, sc, stop_at):
             rec_i[part, 1] = ist[r, RULENOW]
             rec_f[part, 0] = t0
             rec_f[part, 1] = t0 + fs[r, TAPP]
-            v_r = fp[r, VR]
-            acc = fp[r, ACC]
-            dist = py_hypot(fp[r, BX] - fs[r, TX], fp[r, BY] - fs[r, TY])
-            if acc <= 0.0:
-                arrive = now + dist / v_r
+            if outfeed:  # the place leg onto the outfeed (Robot._placing)
+                fs[r, TOOLX] = fs[r, TX]
+                fs[r, TOOLY] = fs[r, TY]
+                fs[r, HOLD0] = -math.inf
+                _place_onto(p, s, rec, r, part, p.kp[r, st.kind[part], KPLACE], now)
             else:
-                arrive = now + move_time(dist, v_r, acc)
-            kind = st.kind[part]  # its chute: kind 0's columns, then one more per kind
-            ready = BINREADY if kind == 0 else N_FS + kind - 1
-            count = BINCOUNT if kind == 0 else N_IS + kind - 1
-            start = arrive
-            if fs[r, ready] > arrive:
-                start = fs[r, ready]
-            done = start + p.kp[r, kind, KPLACE]
-            ist[r, count] += 1
-            if capacity and ist[r, count] >= capacity:
-                ist[r, count] = 0
-                ist[r, BOXES] += 1
-                fs[r, ready] = done + gp[CHANGE]
-            blocked = start - arrive
-            rec_f[part, 2] = done
-            if blocked > 0.0:
-                rec_f[part, 3] = blocked
-                _span(s, rec, r, S_BLOCKED, arrive, arrive + blocked)
-            _schedule(s, r, now + (done - now), NORMAL, PC_PLACE)
+                v_r = fp[r, VR]
+                acc = fp[r, ACC]
+                dist = py_hypot(fp[r, BX] - fs[r, TX], fp[r, BY] - fs[r, TY])
+                if acc <= 0.0:
+                    arrive = now + dist / v_r
+                else:
+                    arrive = now + move_time(dist, v_r, acc)
+                kind = st.kind[part]  # its chute: kind 0's columns, then one more per kind
+                ready = BINREADY if kind == 0 else N_FS + kind - 1
+                count = BINCOUNT if kind == 0 else N_IS + kind - 1
+                start = arrive
+                if fs[r, ready] > arrive:
+                    start = fs[r, ready]
+                done = start + p.kp[r, kind, KPLACE]
+                ist[r, count] += 1
+                if capacity and ist[r, count] >= capacity:
+                    ist[r, count] = 0
+                    ist[r, BOXES] += 1
+                    fs[r, ready] = done + gp[CHANGE]
+                blocked = start - arrive
+                rec_f[part, 2] = done
+                if blocked > 0.0:
+                    rec_f[part, 3] = blocked
+                    _span(s, rec, r, S_BLOCKED, arrive, arrive + blocked)
+                _schedule(s, r, now + (done - now), NORMAL, PC_PLACE)
         elif pc == PC_PLACE:
-            fs[r, TOOLX] = fp[r, BX]
-            fs[r, TOOLY] = fp[r, BY]
+            if outfeed:  # the tool moved with the slot while it released the part
+                fs[r, TOOLX] = fs[r, SLOTX]
+                fs[r, TOOLY] = fs[r, SLOTY]
+            else:
+                fs[r, TOOLX] = fp[r, BX]
+                fs[r, TOOLY] = fp[r, BY]
             top = True
+        elif pc == PC_HOLDING:  # a slot entered the robot's place interval: try again
+            part = ist[r, PART]
+            _place_onto(p, s, rec, r, part, p.kp[r, st.kind[part], KPLACE], now)
         elif pc == PC_INTERRUPT:
             part = ist[r, PART]
             s.holder[part] = FREE
@@ -253,4 +274,6 @@ def close_open_spans(s, rec, now):
             _span(s, rec, r, S_WAIT, fs[r, WAIT0], now)
         elif ist[r, PC] == PC_DOWN:
             _span(s, rec, r, S_DOWN, fs[r, DOWN0], now)
+        elif ist[r, PC] == PC_HOLDING:
+            _span(s, rec, r, S_HOLDING, fs[r, HOLD0], now)
     return gs[STATUS]

@@ -33,13 +33,22 @@ N_GP = 6
 # line int parameters gi[.]
 SCHEME, CAPACITY, HOLD = range(3)  # HOLD: pause at every decision epoch (environments)
 N_GI = 3
+# the outfeed og[.] (float, line): on (1.0) or not, signed speed, s between containers, where
+# a container's centre enters, the outfeed's centre line, slots; then each slot's dx, dy
+OUT_ON, OUT_U, OUT_GAP, OUT_XIN, OUT_Y, OUT_NS = range(6)
+N_OG = 6  # slot k's dx at N_OG + 2 k, its dy at N_OG + 2 k + 1
+# per robot and slot orb[r, k, .]: the robot's place interval at the slot's y, and the s
+# after a container enters until the slot enters that interval (inf: never)
+OLO, OHI, OENTRY = range(3)
+N_ORB = 3
 T_CONTINUE, T_ALL, T_ANY = range(3)  # twin.plan.SCHEMES' indices
 SCHEME_CODES = {name: code for code, name in enumerate(SCHEMES)}
 assert SCHEME_CODES == {"t_continue": T_CONTINUE, "t_all": T_ALL, "t_any": T_ANY}
 # robot float state fs[r, .]
 TOOLX, TOOLY, NEXTFAIL, APPROACH, T0, TAPP, TX, TY, WAKE, WAIT0, BINREADY, DOWN0 = range(12)
 CAL, CALW = 12, 14  # CAL + j, CALW + j: an event calendar node's robot and its wake-up
-N_FS = 16  # then one BINREADY column per kind code above 0 (N_FS + kind - 1)
+HOLD0, SLOTX, SLOTY = 16, 17, 18  # a hold's start (-inf: none); the tool after a place
+N_FS = 19  # then one BINREADY column per kind code above 0 (N_FS + kind - 1)
 # robot int state ist[r, .]
 PC, ACTIVE, WPRIO, WSEQ, CLAIMED, PART, DOWN, WAITING, EXPECTED = range(9)
 BINCOUNT, BOXES, EXPIDX = range(9, 12)
@@ -60,11 +69,12 @@ N_GS = 10
 NOW = 0  # gf[NOW]
 # program counters: where a robot resumes when its wake-up is processed
 PC_START, PC_NOOP, PC_HELD, PC_APPROACH, PC_PLACE, PC_INTERRUPT, PC_DOWN = range(7)
+PC_HOLDING = 7  # holding a gripped part until an outfeed slot comes into reach
 # SimPy event priorities
 URGENT, NORMAL = 0, 1
 # span states
-S_WAIT, S_INTERRUPTED, S_NOOP, S_BLOCKED, S_DOWN = range(5)
-SPAN_NAMES = ("wait", "interrupted", "noop", "blocked", "down")
+S_WAIT, S_INTERRUPTED, S_NOOP, S_BLOCKED, S_DOWN, S_HOLDING = range(6)
+SPAN_NAMES = ("wait", "interrupted", "noop", "blocked", "down", "holding")
 # run status
 ST_OK, ST_SPANS, ST_SIRO, ST_EXPS = range(4)
 ST_CHOOSE = 4  # a robot with rule EXTERNAL has candidates: call choose_external

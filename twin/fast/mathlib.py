@@ -136,6 +136,13 @@ def intercept_time(dx: float, dy: float, v: float, v_r: float, acc: float) -> fl
 
 
 @compiled()
+def place_intercept(dx: float, dy: float, u: float, v_r: float, acc: float) -> float:
+    """twin.geometry.place_intercept: the pick's interception with the outfeed's signed
+    velocity ``u``."""
+    return intercept_time(dx, dy, u, v_r, acc)
+
+
+@compiled()
 def position_along(
     sx: float, sy: float, ex: float, ey: float, elapsed: float, speed: float, acc: float
 ) -> tuple[float, float]:

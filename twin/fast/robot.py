@@ -56,6 +56,7 @@ from pnp_twin.twin.fast.layout import (
     PART,
     PC,
     PC_APPROACH,
+    PC_HOLDING,
     PC_NOOP,
     PC_PLACE,
     PC_START,
@@ -192,7 +193,7 @@ def _idle(p, s, r, q, now):
     fp, ist = p.fp, s.ist
     if q == r or not (fp[q, BA] < fp[r, BB] and fp[r, BA] < fp[q, BB]):
         return False
-    if ist[q, DOWN] or ist[q, PC] == PC_PLACE:
+    if ist[q, DOWN] or ist[q, PC] == PC_PLACE or ist[q, PC] == PC_HOLDING:
         return False  # down, or carrying a part
     return not (ist[q, CLAIMED] >= 0 and s.fs[q, T0] < now)  # approaching an earlier claim
 

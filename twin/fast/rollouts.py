@@ -73,8 +73,8 @@ def _continue_all(p, at, work, st0, futures, picks, rule, stop_at, window, total
     s, rec, sc = work
     feds, ys, lens, n_kept, kinds = futures
     lo, hi = window
-    fs0, ist0, gs0, gf0, holder0, left_at0, counts0 = s0
-    fs, ist, gs, gf, holder, left_at, counts = s
+    fs0, ist0, gs0, gf0, holder0, left_at0, counts0, _ = s0  # no outfeed (bind_run refuses)
+    fs, ist, gs, gf, holder, left_at, counts, _ = s
     rec_i, rec_f = rec.rec_i, rec.rec_f
     for m in range(feds.shape[0]):
         n = lens[m]
@@ -184,6 +184,7 @@ def _run(
             np.zeros(width, dtype=np.int64),
             np.zeros(width),
             np.zeros_like(line.counts),
+            np.zeros((0, 0), dtype=np.int64),
         ),
         Records(rec_i, rec_f, np.zeros((0, 2), dtype=np.int32), np.zeros((0, 2))),
         Scratch(np.zeros(width + 1, dtype=np.int64), np.zeros((width + 1, 3))),

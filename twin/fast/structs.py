@@ -26,6 +26,8 @@ class Params(NamedTuple):
     gp: np.ndarray  # float64 (N_GP,): belt speed, tick, end of run, box change, constants
     gi: np.ndarray  # int64 (N_GI,): termination scheme, bin capacity, hold mode
     kp: np.ndarray  # float64 (robots, kinds, N_KP): picks the kind, grip, release, value
+    og: np.ndarray  # float64 (N_OG + 2 slots,): the outfeed (og[OUT_ON] 0: none, bins)
+    orb: np.ndarray  # float64 (robots, slots, N_ORB): each robot's place interval per slot
 
 
 class State(NamedTuple):
@@ -38,13 +40,16 @@ class State(NamedTuple):
     holder: np.ndarray  # int64 (parts,): the robot that claimed each part, -1: none
     left_at: np.ndarray  # float64 (parts,): each claimed part's grip time, inf: on the belt
     counts: np.ndarray  # int64 (robots, rules + NooP): decisions per robot and rule
+    taken: np.ndarray  # int64 (containers, slots): outfeed slots reserved (0 rows: none)
 
 
 class Records(NamedTuple):
     """What a run writes for the record tables and the KPIs."""
 
     rec_i: np.ndarray  # int64 (parts, 2): picking robot, rule code (-1: not picked)
+    # (4 columns with an outfeed: then container and slot placed into, -1: none)
     rec_f: np.ndarray  # float64 (parts, 4): decided, picked, placed (NaN: not), blocked
+    # (6 with an outfeed: then when a hold began (NaN: none) and how long it lasted)
     sp_i: np.ndarray  # int32 (room, 2): each state span's robot and state (0 rows: none)
     sp_f: np.ndarray  # float64 (room, 2): its start and end
 
@@ -69,13 +74,15 @@ class Scratch(NamedTuple):
 @compiled(inline=True)
 def params_of(p, ip, e):
     """Line e's parameters: shared ones, and its own row of a batch's rule codes ``ip``."""
-    return Params(p.fp, ip[e], p.gp, p.gi, p.kp)
+    return Params(p.fp, ip[e], p.gp, p.gi, p.kp, p.og, p.orb)
 
 
 @compiled(inline=True)
 def state_of(b, e):
     """Line e's state in a batch of states (a view)."""
-    return State(b.fs[e], b.ist[e], b.gs[e], b.gf[e], b.holder[e], b.left_at[e], b.counts[e])
+    return State(
+        b.fs[e], b.ist[e], b.gs[e], b.gf[e], b.holder[e], b.left_at[e], b.counts[e], b.taken[e]
+    )
 
 
 @compiled(inline=True)

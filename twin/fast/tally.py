@@ -20,14 +20,14 @@ from pnp_twin.twin.kpis import PERCENTILES, SPAN_STATES, STATES, WELCH_BINS, Kpi
 
 COL_OF = np.array(
     [
-        *(STATES.index(s) for s in ("wait", "busy", "noop", "blocked", "down")),
+        *(STATES.index(s) for s in ("wait", "busy", "noop", "blocked", "down", "blocked")),
         STATES.index("busy"),
         STATES.index("blocked"),
     ],
     dtype=np.int64,
 )
-"""The STATES column of each span state code (an interruption is busy time), then the
-columns of busy and of blocked time."""
+"""The STATES column of each span state code (an interruption is busy time, holding a part
+for an outfeed slot blocked time), then the columns of busy and of blocked time."""
 assert SPAN_NAMES == SPAN_STATES  # the engine's span codes are the KPIs'
 
 
@@ -57,8 +57,8 @@ def _tally(fed, rec, k_spans, window, col_of, out_i, out_f, sums):
     cycles, grouped, spare = sums
     n = picks.shape[0]
     bins = welch_parts.shape[0]
-    busy = col_of[5]
-    blocked = col_of[6]
+    busy = col_of[-2]
+    blocked = col_of[-1]
     presented = 0
     picked = 0
     for i in range(fed.shape[0]):

@@ -137,17 +137,17 @@ class LineBatch:
     ) -> None:
         self.scenario = scenario
         self.n = n
-        template = FastLine(scenario, rules=["FIFO"], hold=True)
-        self.plan = template.plan
-        shape = self.plan.new_shape()
+        shape = LinePlan.of(scenario).new_shape()
         if shape is not None:
             raise ValueError(
                 f"{shape}: the vector environments run lines of one kind of part with every "
-                "robot on the upper side and no reach limit; use the Gymnasium or PettingZoo "
-                "environment (one line) for this scenario"
+                "robot on the upper side, no reach limit and bins (no outfeed); use the "
+                "Gymnasium or PettingZoo environment (one line) for this scenario"
             )
+        template = FastLine(scenario, rules=["FIFO"], hold=True)
+        self.plan = template.plan
         self.fp, self.ip0, self.gp, self.gi = template.fp, template.ip, template.gp, template.gi
-        self.kp = template.kp
+        self.kp, self.og, self.orb = template.kp, template.og, template.orb
         self.n_robots = r = len(template.specs)
         self.siro = siro
         self.breaks = template.breaks
@@ -194,6 +194,7 @@ class LineBatch:
         self.holder = np.full((n, parts), -1, dtype=np.int64)
         self.left_at = np.full((n, parts), math.inf)
         self.counts = np.zeros((n, r, len(L.RULE_NAMES)), dtype=np.int64)
+        self.taken = np.zeros((n, 0, 0), dtype=np.int64)  # no outfeed (refused above)
         self.siro_draws = np.zeros((n, SIRO_ROOM if self.siro else 0), dtype=np.int64)
         self.exps = np.zeros((n, r, EXP_ROOM if self.breaks else 0))
         self.started = np.full((n, r), math.nan)
@@ -320,7 +321,7 @@ class LineBatch:
 
     def _build_structs(self) -> Structs:
         return (
-            Params(self.fp, self.ip, self.gp, self.gi, self.kp),
+            Params(self.fp, self.ip, self.gp, self.gi, self.kp, self.og, self.orb),
             V.EnvParams(self.ef, self.ei, self.spans, self.ip0),
             State(*(getattr(self, name) for name in State._fields)),
             Streams(self.fed, self.ys, self.siro_draws, self.exps, self.kind),
