@@ -19,6 +19,7 @@ from pnp_twin.twin.stats import t_interval, t_quantile
 KPIS = ("gripping_rate", "throughput", "efficiency", "utilisation")
 # G in %, efficiency and utilisation as fractions (the CSV convention, docs/study_format.md)
 BOUNDS = {"gripping_rate": (0.0, 100.0), "efficiency": (0.0, 1.0), "utilisation": (0.0, 1.0)}
+BOUNDS |= {"value_rate": (0.0, 100.0), "fill_rate": (0.0, 100.0), "hold": (0.0, 1.0)}
 
 
 def grouped_intervals(
@@ -62,15 +63,21 @@ def _first(ordered: pd.DataFrame, starts: np.ndarray, columns: list[str]) -> dic
     return {c: ordered[c].iloc[starts].to_numpy() for c in columns}
 
 
-def kind_kpis(results: pd.DataFrame) -> list[str]:
-    """On a line with kinds of part: the value rate and each kind's gripping rate (%), also
-    summarised (lines of one kind have neither column, and their summary is unchanged)."""
+SHAPE_KPIS = ("value_rate", "fill_rate", "slots_filled_per_s", "hold")
+"""Summarised where a line has them: kinds of part (value_rate), an outfeed (the rest)."""
+
+
+def shape_kpis(results: pd.DataFrame) -> list[str]:
+    """The KPIs of a line's shape also summarised: the value rate and each kind's gripping
+    rate (%) on a line with kinds of part, the fill rate, slots filled per second and the
+    share of time held on a line with an outfeed (lines without have none of these columns,
+    and their summary is unchanged)."""
     kinds = [
         c
         for c in results.columns
         if c.startswith("kind_") and c.endswith("_gripping_rate") and results[c].notna().any()
     ]  # a kind no robot picks has no gripping rate: left out
-    return (["value_rate"] if "value_rate" in results.columns else []) + kinds
+    return [k for k in SHAPE_KPIS if k in results.columns] + kinds
 
 
 def summarise(results: pd.DataFrame, grid: Sequence[str], confidence: float = 0.95) -> pd.DataFrame:
@@ -82,11 +89,12 @@ def summarise(results: pd.DataFrame, grid: Sequence[str], confidence: float = 0.
     columns = ["point", *grid, "policy"]
     out: dict[str, Any] = _first(ordered, starts, columns)
     out["n"] = counts.astype(np.int64)
-    for kpi in (*KPIS, *kind_kpis(results)):
+    for kpi in (*KPIS, *shape_kpis(results)):
         values = ordered[kpi].to_numpy(dtype=float)
         mean, low, high = grouped_intervals(values, starts, counts, confidence)
-        if kpi in BOUNDS or kpi not in KPIS:  # bounded: its interval cannot leave the bounds
-            lo, hi = BOUNDS.get(kpi, (0.0, 100.0))
+        bounds = BOUNDS.get(kpi, (0.0, 100.0) if kpi.startswith("kind_") else None)
+        if bounds is not None:  # a bounded KPI: its interval cannot leave the bounds
+            lo, hi = bounds
             low = np.where(lo > low, lo, low)  # max(low, lo), NaN kept as Python's max does
             high = np.where(hi < high, hi, high)
         out.update({f"{kpi}_mean": mean, f"{kpi}_ci_low": low, f"{kpi}_ci_high": high})
