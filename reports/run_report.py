@@ -79,8 +79,29 @@ def kpi_rows(kpis: Mapping[str, Any]) -> str:
             f"{kpis['cycle_time_mean']:.3f} / {kpis['cycle_time_p95']:.3f} s",
         ),
     ]
+    rows += outfeed_rows(kpis)
     body = "".join(f"<tr><th>{esc(k)}</th><td>{esc(v)}</td></tr>" for k, v in rows)
     return f'<table class="facts"><tbody>{body}</tbody></table>'
+
+
+def outfeed_rows(kpis: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """On a line placing onto an outfeed: its fill rate, slots filled and parts held."""
+    if "fill_rate" not in kpis:
+        return []
+    return [
+        (
+            "Fill rate (containers that left full)",
+            f"{fmt_pct(kpis['fill_rate'], 1)}: {kpis['containers_full']} of "
+            f"{kpis['containers']} containers ({kpis['containers_unfilled']} left unfilled)",
+        ),
+        ("Slots filled", f"{kpis['slots_filled_per_s']:.3f} per s"),
+        (
+            "Parts held for want of a free slot",
+            f"{kpis['parts_held']} ({kpis['hold_time']:.1f} s in all; robots held "
+            f"{fmt_pct(100 * kpis['hold'])} of their time; {kpis['parts_held_at_end']} still "
+            "held at the end)",
+        ),
+    ]
 
 
 def robot_rows(kpis: Mapping[str, Any]) -> str:
@@ -305,6 +326,11 @@ def build_run_page(
             *(
                 [("Value rate", fmt_pct(kpis["value_rate"]), "of the value presented")]
                 if kinds_of(kpis)
+                else []
+            ),
+            *(
+                [("Fill rate", fmt_pct(kpis["fill_rate"]), "of the containers left full")]
+                if "fill_rate" in kpis
                 else []
             ),
             ("Throughput", f"{kpis['throughput']:.2f}", "parts/s"),

@@ -254,3 +254,22 @@ def test_a_line_of_one_kind_has_no_kinds_table(baseline: Built) -> None:
     assert "Side</th>" not in html and "Reach (m)</th>" not in html
     cards = re.findall(r'<div class="k">(.*?)</div>', html)
     assert cards == ["Gripping rate", "Throughput", "Robots", "Simulated"]
+
+
+def test_an_outfeed_line_reports_its_fill_rate_and_held_parts(tmp_path: Path) -> None:
+    from pnp_twin.policies import make_policy
+    from pnp_twin.reports.run_report import build_run_report
+    from pnp_twin.twin import simulate
+
+    sc = with_overrides(load_scenario("tray_loading_counterflow"), {"duration": 60, "warmup": 5})
+    result = simulate(sc, make_policy("SPT", sc.robots.count))
+    k = result.kpis
+    out = build_run_report(
+        k, result.parts, result.spans, sc.model_dump(mode="json"), tmp_path / "r.html"
+    )
+    html = out.read_text()
+    assert "Fill rate (containers that left full)" in html
+    assert f"{k['containers_full']} of {k['containers']} containers" in html
+    assert f"{k['parts_held']} ({k['hold_time']:.1f} s in all" in html
+    cards = re.findall(r'<div class="k">(.*?)</div>', html)
+    assert cards[:2] == ["Gripping rate", "Fill rate"]
