@@ -222,11 +222,19 @@ def _yields_to(p, s, r, kind, x, y, t, now):
     return False
 
 
+@compiled(inline=True)
+def _keep(sc, n, i, x, y, t):
+    """Candidate n is part i, now at (x, y), intercepted after t s."""
+    sc.c_i[n] = i
+    sc.c_f[n, 0] = x
+    sc.c_f[n, 1] = y
+    sc.c_f[n, 2] = t
+
+
 @compiled()
 def _filtered_candidates(p, s, st, sc, r, now, lo, hi):
     """Robot._filtered_candidates: the candidates in [lo, hi) passing every test."""
     fed, ys, holder = st.fed, st.ys, s.holder
-    c_i, c_f = sc.c_i, sc.c_f
     v = p.gp[V]
     n = 0
     for i in range(lo, hi):
@@ -242,10 +250,7 @@ def _filtered_candidates(p, s, st, sc, r, now, lo, hi):
             continue
         if _yields_to(p, s, r, kind, x, y, t, now):
             continue
-        c_i[n] = i
-        c_f[n, 0] = x
-        c_f[n, 1] = y
-        c_f[n, 2] = t
+        _keep(sc, n, i, x, y, t)
         n += 1
     return n
 
@@ -254,7 +259,6 @@ def _filtered_candidates(p, s, st, sc, r, now, lo, hi):
 def _candidates(p, s, st, sc, r, now):
     """Robot._candidates: unclaimed parts whose interception point lies in [a, b]."""
     fp, fs, ist, fed, ys, holder = p.fp, s.fs, s.ist, st.fed, st.ys, s.holder
-    c_i, c_f = sc.c_i, sc.c_f
     v = p.gp[V]
     px = fs[r, TOOLX]
     py = fs[r, TOOLY]
@@ -291,10 +295,7 @@ def _candidates(p, s, st, sc, r, now):
             t = (dx * v + math.sqrt(dx * dx * vv + quad * (dx * dx + dy * dy))) / quad
         xi = x + v * t
         if a <= xi and xi <= b:
-            c_i[n] = i
-            c_f[n, 0] = x
-            c_f[n, 1] = y
-            c_f[n, 2] = t
+            _keep(sc, n, i, x, y, t)
             n += 1
     return n
 
