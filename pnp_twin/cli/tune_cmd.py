@@ -7,8 +7,6 @@ prints the answer, the line to type into the controller, or the JSON with ``--js
 
 from __future__ import annotations
 
-import shlex
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -16,9 +14,10 @@ import typer
 
 from pnp_twin.cli.app import Engine, EngineOpt, JsonOpt, ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note
+from pnp_twin.cli.study_folder import run_locked
 from pnp_twin.studies.tune import Tuned, TuneSettings, check_tune
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets, with_overrides
-from pnp_twin.twin.output import check_out_folder, dumps_json, removed_if_refused
+from pnp_twin.twin.output import dumps_json, removed_if_refused
 
 OURS = (".study.lock", ".study.lock.json", "tune.json")
 """Entries that make a folder a tune study of ours (run again into it: rewritten)."""
@@ -97,18 +96,15 @@ def tune(
         workers=workers,
     )
     check_tune(sc, settings)  # everything refusable before the folder is made
-    check_out_folder(out, {"scenario file": find_scenario(scenario)}, OURS)
-    from pnp_twin.studies.lock import StudyLock
     from pnp_twin.studies.tune import run_tune
 
+    def work(_: str) -> Tuned:
+        result = run_tune(sc, settings, _progress)
+        write_tune(result, out)
+        return result
+
     with removed_if_refused(out):
-        lock = StudyLock(out)
-        lock.acquire(shlex.join(["pnp-twin", *sys.argv[1:]]))
-        try:
-            result = run_tune(sc, settings, _progress)
-            write_tune(result, out)
-        finally:
-            lock.release()
+        result = run_locked(out, {"scenario file": find_scenario(scenario)}, OURS, work)
     if as_json:
         typer.echo(dumps_json(result.to_json(), indent=2))
         return
