@@ -342,8 +342,8 @@ def outfeed_kpis(
     the window that waited for a slot, the seconds robots held parts (line and per robot)
     and the parts still held when the run ended."""
     span = w1 - w0
-    gap, n_slots = plan.gap, plan.n_slots
-    entered = np.arange(int(math.floor(w1 / gap)) + 2) * gap
+    n_slots = plan.n_slots
+    entered = np.asarray(plan.times)
     inside = np.flatnonzero((entered >= w0) & (entered < w1))
     placed = container >= 0
     filled = np.bincount(container[placed], minlength=len(entered))[: len(entered)]

@@ -1,10 +1,11 @@
 """The outfeed conveyor: containers of slots carried past the robots, placed into.
 
-Positions are analytic, like the parts': container c enters at ``c * gap`` s with its
-centre at ``x_in`` (co-flow: the upstream end of the robots' span, the smallest a_i;
-counter-flow: its downstream end, the largest b_i) and moves at the signed velocity ``u``
-(+speed co-flow, -speed counter-flow), so slot k of container c is at
-x = x_in + u (t - c gap) + dx_k, y = y + dy_k. Nothing moves tick by tick.
+Positions are analytic, like the parts': container c enters at ``times[c]`` s (``c * gap``
+for fixed spacing; drawn gaps, never shorter than a container, for Poisson or normal
+arrivals) with its centre at ``x_in`` (co-flow: the upstream end of the robots' span, the
+smallest a_i; counter-flow: its downstream end, the largest b_i) and moves at the signed
+velocity ``u`` (+speed co-flow, -speed counter-flow), so slot k of container c is at
+x = x_in + u (t - times[c]) + dx_k, y = y + dy_k. Nothing moves tick by tick.
 
 :class:`OutfeedPlan` holds what follows from the scenario (derived once, in
 :class:`twin.plan.LinePlan`); :class:`Outfeed` the run's state: which slots are taken
@@ -14,8 +15,11 @@ x = x_in + u (t - c gap) + dx_k, y = y + dy_k. Nothing moves tick by tick.
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
+
+import numpy as np
 
 from pnp_twin.twin.decision import RobotSpec
 from pnp_twin.twin.geometry import place_intercept
@@ -36,9 +40,18 @@ class OutfeedPlan:
     hi: tuple[tuple[float, ...], ...]  # (its x-range cut by its reach at the slot's y)
     entry: tuple[tuple[float, ...], ...]  # [robot][slot]: s after a container enters until
     # the slot enters the robot's place interval (inf: never)
+    times: tuple[float, ...] = ()  # s: when each container enters, to past the run's end
 
     @classmethod
-    def of(cls, config: OutfeedConfig, specs: Sequence[RobotSpec]) -> OutfeedPlan:
+    def of(
+        cls,
+        config: OutfeedConfig,
+        specs: Sequence[RobotSpec],
+        until: float = 0.0,
+        rng: np.random.Generator | None = None,
+    ) -> OutfeedPlan:
+        """The outfeed of a line whose run ends at ``until``; ``rng`` (the containers' own
+        stream) draws the gaps of Poisson or normal arrivals."""
         u = config.sign * config.speed
         x_in = min(s.workspace[0] for s in specs) if u > 0 else max(s.workspace[1] for s in specs)
         dx = tuple(float(d[0]) for d in config.slots)
@@ -66,7 +79,12 @@ class OutfeedPlan:
             los.append(tuple(lo_r))
             his.append(tuple(hi_r))
             entries.append(tuple(en_r))
-        return cls(u, config.gap, x_in, config.y, dx, dy, tuple(los), tuple(his), tuple(entries))
+        waits = [w for row in entries for w in row if w < math.inf]
+        times = arrivals(config, until + max(waits, default=0.0) + 2.0 * config.gap, rng)
+        return cls(
+            u, config.gap, x_in, config.y, dx, dy, tuple(los), tuple(his), tuple(entries),
+            tuple(times.tolist()),
+        )  # fmt: skip
 
     @property
     def n_slots(self) -> int:
@@ -74,11 +92,11 @@ class OutfeedPlan:
 
     def entered_at(self, c: int) -> float:
         """When container c enters (its centre at x_in)."""
-        return c * self.gap
+        return self.times[c]
 
     def slot_x(self, c: int, k: int, t: float) -> float:
         """x of slot k of container c at time t."""
-        return self.x_in + self.u * (t - c * self.gap) + self.dx[k]
+        return self.x_in + self.u * (t - self.times[c]) + self.dx[k]
 
     def slot_y(self, k: int) -> float:
         return self.y + self.dy[k]
@@ -87,16 +105,37 @@ class OutfeedPlan:
         """The first instant after ``now`` at which a slot (of any container, free or not)
         enters robot ``robot``'s place interval: a holding robot's next try (inf: none)."""
         best = math.inf
+        times = self.times
         for wait in self.entry[robot]:
             if wait == math.inf:
                 continue
-            c = max(0, math.floor((now - wait) / self.gap))
-            while c * self.gap + wait <= now:
+            c = bisect_right(times, now - wait)  # then exactly: the first entering after now
+            while c > 0 and times[c - 1] + wait > now:
+                c -= 1
+            while c < len(times) and times[c] + wait <= now:
                 c += 1
-            at = c * self.gap + wait
-            if at < best:
-                best = at
+            if c < len(times) and times[c] + wait < best:
+                best = times[c] + wait
         return best
+
+
+def arrivals(config: OutfeedConfig, until: float, rng: np.random.Generator | None) -> np.ndarray:
+    """When the containers enter, from 0 s to past ``until``: every ``gap`` s, or drawn gaps
+    (Poisson, normal) each at least one container length long."""
+    gap = config.gap
+    if config.arrival == "fixed" or rng is None:
+        return np.arange(int(math.floor(until / gap)) + 2) * gap  # c * gap, c = 0, 1, ...
+    chunks, t = [np.zeros(1)], 0.0
+    while t <= until:
+        n = max(int((until - t) / gap * 1.2) + 16, 16)
+        if config.arrival == "poisson":
+            gaps = rng.standard_exponential(n) * gap
+        else:
+            gaps = rng.normal(gap, config.cv * gap, n)
+        times = t + np.cumsum(np.maximum(gaps, config.min_gap))
+        chunks.append(times)
+        t = float(times[-1])
+    return np.concatenate(chunks)
 
 
 @dataclass(frozen=True)
@@ -138,18 +177,14 @@ class Outfeed:
         interval both when the release starts and when it ends ``place_time`` later; None
         when no free slot of an entered container is reachable."""
         p = self.plan
-        u, gap = p.u, p.gap
-        last = math.floor(now / gap)  # the newest container that has entered (c gap <= now)
-        while last * gap > now:
-            last -= 1
-        while (last + 1) * gap <= now:
-            last += 1
+        u, times = p.u, p.times
+        last = bisect_right(times, now) - 1  # the newest container that has entered
         best: Slot | None = None
         lo, hi = p.lo[robot], p.hi[robot]
         for c in range(last, -1, -1):  # newest first: older ones are further along
             gone = True
             for k in range(p.n_slots):
-                x = p.x_in + u * (now - c * gap) + p.dx[k]
+                x = p.x_in + u * (now - times[c]) + p.dx[k]
                 if (u > 0 and x <= hi[k]) or (u < 0 and x >= lo[k]):
                     gone = False
                 if (c, k) in self.taken or lo[k] > hi[k]:

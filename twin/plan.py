@@ -8,9 +8,10 @@ belt tick, the end of the run, the seed split, the rule and scheme codes) are th
 doubles in both, written once here.
 
 The seed is split into independent child streams, in this order: feeder arrivals, lateral
-positions, the policy, one per robot (breakdowns), then the parts' kinds and the robots'
-priority order (ties between facing robots); so the part stream does not depend on the
-policy, and a line of one kind on one side draws exactly what it drew before kinds existed.
+positions, the policy, one per robot (breakdowns), then the parts' kinds, the robots'
+priority order (ties between facing robots) and the outfeed's container arrivals; so the
+part stream does not depend on the policy, and a line of one kind on one side draws exactly
+what it drew before kinds existed.
 :meth:`LinePlan.seeds` gives the children; a stream's generator is built only where a run
 uses it (:meth:`LinePlan.stream`).
 """
@@ -175,6 +176,14 @@ class LinePlan:
         last_end = max(r.spec.workspace[1] for r in robots)
         kinds = scenario.feeder.kinds
         change = scenario.bins.change_time
+        end_at = duration + last_end / b.speed + DRAIN_SLACK + change
+        outfeed = None
+        if out is not None:  # containers drawn from their own stream, after the robots' order
+            rng = None
+            if out.arrival != "fixed":
+                stream = np.random.SeedSequence(seed).spawn(FIRST_ROBOT + len(specs) + 3)[-1]
+                rng = np.random.default_rng(stream)
+            outfeed = OutfeedPlan.of(out, specs, end_at, rng)
         return cls(
             scenario=scenario,
             seed=seed,
@@ -182,7 +191,7 @@ class LinePlan:
             robots=tuple(robots),
             last_end=last_end,
             tick=(b.length / b.grid[0]) / b.speed,
-            end_at=duration + last_end / b.speed + DRAIN_SLACK + change,
+            end_at=end_at,
             scheme=SCHEMES.index(scenario.termination),
             capacity=scenario.bins.capacity,
             change_time=change,
@@ -191,7 +200,7 @@ class LinePlan:
             values=tuple(k.value for k in kinds) or (1.0,),
             targeted=tuple(any(s.picks[c] for s in specs) for c in range(len(kinds))) or (True,),
             rivals=facing,
-            outfeed=None if out is None else OutfeedPlan.of(out, specs),
+            outfeed=outfeed,
         )
 
     @property
@@ -233,7 +242,7 @@ class LinePlan:
 
     def seeds(self) -> list[np.random.SeedSequence]:
         """The child seeds of the split (see the module docstring)."""
-        return np.random.SeedSequence(self.seed).spawn(FIRST_ROBOT + len(self.robots) + 2)
+        return np.random.SeedSequence(self.seed).spawn(FIRST_ROBOT + len(self.robots) + 3)
 
     @staticmethod
     def stream(seeds: list[np.random.SeedSequence], k: int) -> np.random.Generator:

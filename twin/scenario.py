@@ -394,9 +394,18 @@ class OutfeedConfig(Frozen):
         None, "m", "Distance between containers in m (give pitch or rate).", gt=0, le=100
     )
     rate: Annotated[Real, least(0.001, "containers/s", "one in 1000 s")] | None = num(
-        None, "containers/s", "Containers per second, evenly spaced (give pitch or rate).",
+        None, "containers/s", "Containers per second on average (give pitch or rate).",
         gt=0, le=100,
     )  # fmt: skip
+    arrival: Literal["fixed", "poisson", "normal"] = Field(
+        "fixed",
+        description="How containers arrive: fixed spacing (pitch, or 1/rate), Poisson, or "
+        "normally distributed gaps (mean from pitch or rate, coefficient of variation cv), "
+        "as the feeder's parts; a gap is never shorter than a container (they queue).",
+    )
+    cv: Real = num(
+        0.3, "1", "Coefficient of variation of the gaps (arrival = normal).", ge=0, le=10
+    )
     slots: tuple[Slot, ...] = Field(
         ((0.0, 0.0),),
         min_length=1,
@@ -455,6 +464,11 @@ class OutfeedConfig(Frozen):
         return (
             self.spacing / self.speed if self.pitch is not None else 1.0 / float(self.rate or 1.0)
         )
+
+    @property
+    def min_gap(self) -> float:
+        """The shortest time between containers entering: one container length, s."""
+        return self.container_length / self.speed
 
     @property
     def sign(self) -> float:

@@ -279,3 +279,26 @@ def test_a_study_may_sweep_the_outfeeds_fields() -> None:
     assert field_path_error("outfeed.direction") is None
     assert "is a section" in str(field_path_error("outfeed"))
     assert "not a scenario field" in str(field_path_error("outfeed.sped"))
+
+
+@pytest.mark.parametrize("arrival", ["poisson", "normal"])
+@pytest.mark.parametrize("scheme", ["t_continue", "t_all", "t_any"])
+def test_containers_arriving_at_random_are_identical_on_both_engines(
+    arrival: str, scheme: str
+) -> None:
+    """Drawn gaps (from the containers' own stream, never shorter than a container): the
+    same events on both engines, and the parts the same as with fixed spacing."""
+    extra = {"outfeed.arrival": arrival, "outfeed.cv": 0.6, "termination": scheme}
+    sc = load_scenario("tray_loading_counterflow", {"duration": 60.0, "warmup": 5.0, **extra})
+    result = assert_same(sc, "SPT")
+    times = np.asarray(LinePlan.of(sc).outfeed.times)  # type: ignore[union-attr]
+    gaps = np.diff(times)
+    out = sc.outfeed
+    assert out is not None
+    assert gaps.min() >= out.min_gap - 1e-12 and gaps.std() > 0.05 * gaps.mean()
+    assert times[-1] > LinePlan.of(sc).end_at
+    fixed = load_scenario("tray_loading_counterflow", {"duration": 60.0, "warmup": 5.0})
+    base = simulate(fixed, make_policy("SPT", 3)).parts
+    assert np.array_equal(base["fed_at"], result.parts["fed_at"])  # the part stream is kept
+    k = result.kpis
+    assert k["containers"] == int(((times >= 5.0) & (times < 60.0)).sum())

@@ -200,6 +200,7 @@ class FastLine:
         self.gi[L.CAPACITY] = plan.capacity
         self.gi[L.HOLD] = int(hold)
         self.og, self.orb = _outfeed_params(plan)
+        self.ot = np.array(plan.outfeed.times if plan.outfeed is not None else (), dtype=float)
         self.uses_siro = L.SIRO in codes
         self.breaks = bool(self.ip[:, L.FAILMODE].any())
 
@@ -307,7 +308,7 @@ class FastLine:
         self.rec_f = take("rec_f", (n_parts, 4 if out is None else 6))
         self.rec_f.fill(math.nan)  # not decided, picked, placed; blocked 0 s
         self.rec_f[:, 3] = 0.0  # (a fill and a column: a fifth of a row-tuple's assignment)
-        containers = 0 if out is None else int(self.end_at / out.gap) + 2
+        containers = len(self.ot)
         self.taken = np.zeros((containers, 0 if out is None else out.n_slots), dtype=np.int64)
         if out is not None:
             self.rec_f[:, 5] = 0.0
@@ -413,7 +414,7 @@ class FastLine:
     # -- the kernel's structures (views of the arrays above, built for each call) ----------
     @property
     def params(self) -> Params:
-        return Params(self.fp, self.ip, self.gp, self.gi, self.kp, self.og, self.orb)
+        return Params(self.fp, self.ip, self.gp, self.gi, self.kp, self.og, self.orb, self.ot)
 
     @property
     def state(self) -> State:

@@ -23,7 +23,6 @@ from pnp_twin.twin.fast.layout import (
     OENTRY,
     OHI,
     OLO,
-    OUT_GAP,
     OUT_NS,
     OUT_U,
     OUT_XIN,
@@ -39,24 +38,19 @@ from pnp_twin.twin.fast.layout import (
     VR,
 )
 from pnp_twin.twin.fast.mathlib import place_intercept
-from pnp_twin.twin.fast.robot import _span
+from pnp_twin.twin.fast.robot import _bisect, _span
 
 
 @compiled()
 def _nearest_slot(p, s, r, tx, ty, now, place):
     """Outfeed.nearest: (container, slot, interception time, x, y) of the free slot robot r
     meets soonest from (tx, ty); container -1 when none is reachable."""
-    og, orb, taken = p.og, p.orb, s.taken
+    og, orb, taken, times = p.og, p.orb, s.taken, p.ot
     u = og[OUT_U]
-    gap = og[OUT_GAP]
     ns = int(og[OUT_NS])
     v_r = p.fp[r, VR]
     acc = p.fp[r, ACC]
-    last = math.floor(now / gap)
-    while last * gap > now:
-        last -= 1
-    while (last + 1) * gap <= now:
-        last += 1
+    last = _bisect(times, now, True, 0) - 1  # the newest container that has entered
     best_c = -1
     best_k = -1
     best_t = math.inf
@@ -67,7 +61,7 @@ def _nearest_slot(p, s, r, tx, ty, now, place):
         for k in range(ns):
             lo = orb[r, k, OLO]
             hi = orb[r, k, OHI]
-            x = og[OUT_XIN] + u * (now - c * gap) + og[N_OG + 2 * k]
+            x = og[OUT_XIN] + u * (now - times[c]) + og[N_OG + 2 * k]
             if (u > 0 and x <= hi) or (u < 0 and x >= lo):
                 gone = False
             if taken[c, k] != 0 or lo > hi:
@@ -97,19 +91,20 @@ def _nearest_slot(p, s, r, tx, ty, now, place):
 def _next_slot_entry(p, r, now):
     """OutfeedPlan.next_entry: the first instant after ``now`` a slot enters robot r's
     place interval (inf: none)."""
-    og, orb = p.og, p.orb
-    gap = og[OUT_GAP]
+    og, orb, times = p.og, p.orb, p.ot
+    n = times.shape[0]
     best = math.inf
     for k in range(int(og[OUT_NS])):
         wait = orb[r, k, OENTRY]
         if wait == math.inf:
             continue
-        c = max(0, math.floor((now - wait) / gap))
-        while c * gap + wait <= now:
+        c = _bisect(times, now - wait, True, 0)  # then exactly: the first entering after now
+        while c > 0 and times[c - 1] + wait > now:
+            c -= 1
+        while c < n and times[c] + wait <= now:
             c += 1
-        at = c * gap + wait
-        if at < best:
-            best = at
+        if c < n and times[c] + wait < best:
+            best = times[c] + wait
     return best
 
 
