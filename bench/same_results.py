@@ -50,8 +50,11 @@ SCENARIOS = [
     "rule_mix",
 ]
 CHECKPOINTS = ["async", "async_rollout", "single", "sync"]
-NEW_SHAPES = ["two_sided", "delta_over_belt", "waste_sorting"]
-"""Line shapes the earlier checkout may not know (issue 29): compared engine against engine
+NEW_SHAPES = [
+    "two_sided", "delta_over_belt", "waste_sorting",
+    "tray_loading_coflow", "tray_loading_counterflow",
+]  # fmt: skip
+"""Line shapes the earlier checkout may not know (issues 29, 30): compared engine against engine
 in the working tree alone, every termination scheme."""
 # run metadata, not results: timings, dates, versions, and which engine ran (issue 12)
 VOLATILE = (
