@@ -14,8 +14,9 @@ Compared, each side in its own interpreter with only its own tree on ``PYTHONPAT
 - the learning interface: observations and rewards of the epoch driver under all three
   termination schemes, one episode's rollout labels, and 300 steps of the compiled vector env;
 - a short training run's ``model.safetensors``;
-- the line shapes of :data:`NEW_SHAPES` (kinds, sides, reach), in the working tree alone: the
-  SimPy engine's ``--events`` and ``--spans`` against the compiled engine's, each scheme.
+- the line shapes of :data:`NEW_SHAPES` (kinds, sides, reach, outfeeds), in the working tree
+  alone: the SimPy engine's ``--events`` and ``--spans`` against the compiled engine's, each
+  scheme.
 
 Each output gets one verdict: ``identical`` (the same bytes); ``same values`` (every value
 both sides have is equal, once robots are numbered alike: only columns or keys were added,
