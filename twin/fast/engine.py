@@ -99,18 +99,23 @@ def _robot_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return fp, ip, kp
 
 
-def _outfeed_params(plan: LinePlan) -> tuple[np.ndarray, np.ndarray]:
-    """The kernel's outfeed parameters (``og``, ``orb``; see layout): the plan's outfeed,
-    or ``og[OUT_ON] = 0`` and no slots on a line with bins."""
+def _outfeed_params(plan: LinePlan) -> np.ndarray:
+    """The kernel's outfeed parameters ``og`` (see layout): the plan's outfeed, its robots'
+    place intervals and its containers' entry times, or ``og[OUT_ON] = 0`` on a line with
+    bins."""
     out = plan.outfeed
     if out is None:
-        return np.zeros(L.N_OG), np.zeros((len(plan.robots), 0, L.N_ORB))
-    og = np.zeros(L.N_OG + 2 * out.n_slots)
-    og[L.OUT_ON], og[L.OUT_U], og[L.OUT_GAP] = 1.0, out.u, out.gap
-    og[L.OUT_XIN], og[L.OUT_Y], og[L.OUT_NS] = out.x_in, out.y, out.n_slots
-    og[L.N_OG :: 2], og[L.N_OG + 1 :: 2] = out.dx, out.dy
+        return np.zeros(L.N_OG)
     orb = np.stack([np.array(out.lo), np.array(out.hi), np.array(out.entry)], axis=-1)
-    return og, np.ascontiguousarray(orb, dtype=np.float64)
+    times = np.asarray(out.times, dtype=np.float64)
+    head = np.zeros(L.N_OG)
+    head[L.OUT_ON], head[L.OUT_U], head[L.OUT_GAP] = 1.0, out.u, out.gap
+    head[L.OUT_XIN], head[L.OUT_Y], head[L.OUT_NS] = out.x_in, out.y, out.n_slots
+    slots = np.column_stack([out.dx, out.dy]).ravel()
+    head[L.OUT_ORB] = L.N_OG + len(slots)
+    head[L.OUT_TIMES] = head[L.OUT_ORB] + orb.size
+    head[L.OUT_NT] = len(times)
+    return np.concatenate([head, slots, orb.ravel(), times])
 
 
 STATE = ("ip", *State._fields, *Records._fields, "_c_i", "_c_f")
@@ -199,8 +204,7 @@ class FastLine:
         self.gi[L.SCHEME] = plan.scheme
         self.gi[L.CAPACITY] = plan.capacity
         self.gi[L.HOLD] = int(hold)
-        self.og, self.orb = _outfeed_params(plan)
-        self.ot = np.array(plan.outfeed.times if plan.outfeed is not None else (), dtype=float)
+        self.og = _outfeed_params(plan)
         self.uses_siro = L.SIRO in codes
         self.breaks = bool(self.ip[:, L.FAILMODE].any())
 
@@ -308,7 +312,7 @@ class FastLine:
         self.rec_f = take("rec_f", (n_parts, 4 if out is None else 6))
         self.rec_f.fill(math.nan)  # not decided, picked, placed; blocked 0 s
         self.rec_f[:, 3] = 0.0  # (a fill and a column: a fifth of a row-tuple's assignment)
-        containers = len(self.ot)
+        containers = int(self.og[L.OUT_NT]) if self.plan.outfeed is not None else 0
         self.taken = np.zeros((containers, 0 if out is None else out.n_slots), dtype=np.int64)
         if out is not None:
             self.rec_f[:, 5] = 0.0
@@ -414,7 +418,7 @@ class FastLine:
     # -- the kernel's structures (views of the arrays above, built for each call) ----------
     @property
     def params(self) -> Params:
-        return Params(self.fp, self.ip, self.gp, self.gi, self.kp, self.og, self.orb, self.ot)
+        return Params(self.fp, self.ip, self.gp, self.gi, self.kp, self.og)
 
     @property
     def state(self) -> State:

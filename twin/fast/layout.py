@@ -33,12 +33,16 @@ N_GP = 6
 # line int parameters gi[.]
 SCHEME, CAPACITY, HOLD = range(3)  # HOLD: pause at every decision epoch (environments)
 N_GI = 3
-# the outfeed og[.] (float, line): on (1.0) or not, signed speed, s between containers, where
-# a container's centre enters, the outfeed's centre line, slots; then each slot's dx, dy
-OUT_ON, OUT_U, OUT_GAP, OUT_XIN, OUT_Y, OUT_NS = range(6)
-N_OG = 6  # slot k's dx at N_OG + 2 k, its dy at N_OG + 2 k + 1
-# per robot and slot orb[r, k, .]: the robot's place interval at the slot's y, and the s
-# after a container enters until the slot enters that interval (inf: never)
+# the outfeed og[.] (float, line): on (1.0) or not, signed speed, mean s between containers,
+# where a container's centre enters, the outfeed's centre line, slots, where the per-robot
+# block and the containers' entry times start in og, and how many containers; then each
+# slot's dx, dy, then the blocks. One array: every array in Params is passed on each call of
+# a compiled function, so the outfeed adds one, not three.
+OUT_ON, OUT_U, OUT_GAP, OUT_XIN, OUT_Y, OUT_NS, OUT_ORB, OUT_TIMES, OUT_NT = range(9)
+N_OG = 9  # slot k's dx at N_OG + 2 k, its dy at N_OG + 2 k + 1
+# per robot and slot, og[og[OUT_ORB] + (r * slots + k) * N_ORB + .]: the robot's place
+# interval at the slot's y, and the s after a container enters until the slot enters that
+# interval (inf: never)
 OLO, OHI, OENTRY = range(3)
 N_ORB = 3
 T_CONTINUE, T_ALL, T_ANY = range(3)  # twin.plan.SCHEMES' indices

@@ -19,11 +19,15 @@ from pnp_twin.twin.fast.layout import (
     ACTIVE,
     HOLD0,
     N_OG,
+    N_ORB,
     NORMAL,
     OENTRY,
     OHI,
     OLO,
     OUT_NS,
+    OUT_NT,
+    OUT_ORB,
+    OUT_TIMES,
     OUT_U,
     OUT_XIN,
     OUT_Y,
@@ -45,9 +49,12 @@ from pnp_twin.twin.fast.robot import _bisect, _span
 def _nearest_slot(p, s, r, tx, ty, now, place):
     """Outfeed.nearest: (container, slot, interception time, x, y) of the free slot robot r
     meets soonest from (tx, ty); container -1 when none is reachable."""
-    og, orb, taken, times = p.og, p.orb, s.taken, p.ot
+    og, taken = p.og, s.taken
     u = og[OUT_U]
     ns = int(og[OUT_NS])
+    orb = int(og[OUT_ORB]) + r * ns * N_ORB  # this robot's place intervals
+    t0 = int(og[OUT_TIMES])
+    times = og[t0 : t0 + int(og[OUT_NT])]
     v_r = p.fp[r, VR]
     acc = p.fp[r, ACC]
     last = _bisect(times, now, True, 0) - 1  # the newest container that has entered
@@ -59,8 +66,8 @@ def _nearest_slot(p, s, r, tx, ty, now, place):
     for c in range(last, -1, -1):
         gone = True
         for k in range(ns):
-            lo = orb[r, k, OLO]
-            hi = orb[r, k, OHI]
+            lo = og[orb + k * N_ORB + OLO]
+            hi = og[orb + k * N_ORB + OHI]
             x = og[OUT_XIN] + u * (now - times[c]) + og[N_OG + 2 * k]
             if (u > 0 and x <= hi) or (u < 0 and x >= lo):
                 gone = False
@@ -91,11 +98,15 @@ def _nearest_slot(p, s, r, tx, ty, now, place):
 def _next_slot_entry(p, r, now):
     """OutfeedPlan.next_entry: the first instant after ``now`` a slot enters robot r's
     place interval (inf: none)."""
-    og, orb, times = p.og, p.orb, p.ot
-    n = times.shape[0]
+    og = p.og
+    ns = int(og[OUT_NS])
+    orb = int(og[OUT_ORB]) + r * ns * N_ORB  # this robot's place intervals
+    t0 = int(og[OUT_TIMES])
+    n = int(og[OUT_NT])
+    times = og[t0 : t0 + n]
     best = math.inf
-    for k in range(int(og[OUT_NS])):
-        wait = orb[r, k, OENTRY]
+    for k in range(ns):
+        wait = og[orb + k * N_ORB + OENTRY]
         if wait == math.inf:
             continue
         c = _bisect(times, now - wait, True, 0)  # then exactly: the first entering after now

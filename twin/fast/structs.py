@@ -27,8 +27,6 @@ class Params(NamedTuple):
     gi: np.ndarray  # int64 (N_GI,): termination scheme, bin capacity, hold mode
     kp: np.ndarray  # float64 (robots, kinds, N_KP): picks the kind, grip, release, value
     og: np.ndarray  # float64 (N_OG + 2 slots,): the outfeed (og[OUT_ON] 0: none, bins)
-    orb: np.ndarray  # float64 (robots, slots, N_ORB): each robot's place interval per slot
-    ot: np.ndarray  # float64 (containers,): when each container enters (OutfeedPlan.times)
 
 
 class State(NamedTuple):
@@ -75,7 +73,7 @@ class Scratch(NamedTuple):
 @compiled(inline=True)
 def params_of(p, ip, e):
     """Line e's parameters: shared ones, and its own row of a batch's rule codes ``ip``."""
-    return Params(p.fp, ip[e], p.gp, p.gi, p.kp, p.og, p.orb, p.ot)
+    return Params(p.fp, ip[e], p.gp, p.gi, p.kp, p.og)
 
 
 @compiled(inline=True)

@@ -147,7 +147,7 @@ class LineBatch:
         template = FastLine(scenario, rules=["FIFO"], hold=True)
         self.plan = template.plan
         self.fp, self.ip0, self.gp, self.gi = template.fp, template.ip, template.gp, template.gi
-        self.kp, self.og, self.orb, self.ot = template.kp, template.og, template.orb, template.ot
+        self.kp, self.og = template.kp, template.og
         self.n_robots = r = len(template.specs)
         self.siro = siro
         self.breaks = template.breaks
@@ -321,7 +321,7 @@ class LineBatch:
 
     def _build_structs(self) -> Structs:
         return (
-            Params(self.fp, self.ip, self.gp, self.gi, self.kp, self.og, self.orb, self.ot),
+            Params(self.fp, self.ip, self.gp, self.gi, self.kp, self.og),
             V.EnvParams(self.ef, self.ei, self.spans, self.ip0),
             State(*(getattr(self, name) for name in State._fields)),
             Streams(self.fed, self.ys, self.siro_draws, self.exps, self.kind),
