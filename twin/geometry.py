@@ -113,8 +113,15 @@ def intercept_time(
 
     lo, step = t, max(arm_speed / acceleration, 1e-3) / 8.0
     hi = lo + step
-    while late(hi) > 0.0:
-        lo, hi = hi, hi + step
+    # where the part passes nearest the tool the move is shortest: if the tool can be there
+    # in time, the first meeting is before it (``late`` falls until then), else it is later
+    # (stepping on from the first instant the tool could be there without the limit)
+    closest = -dx / belt_speed if belt_speed != 0.0 else -math.inf
+    if closest > lo and late(closest) <= 0.0:
+        hi = closest
+    else:
+        while late(hi) > 0.0:
+            lo, hi = hi, hi + step
     for _ in range(50):
         mid = 0.5 * (lo + hi)
         if late(mid) > 0.0:

@@ -133,3 +133,16 @@ def test_a_run_picks_only_inside_the_gapped_workspaces(make_scenario: Callable[.
     missed = parts[parts["outcome"] == "missed"]
     assert len(missed) > 0
     assert np.allclose(missed["left_at"], missed["fed_at"] + 2.0 / v, rtol=0, atol=1e-9)
+
+
+def test_a_part_running_into_a_waiting_tool_is_met_when_it_arrives_at_the_latest() -> None:
+    """With an acceleration limit the tool may simply wait where the part passes: a part
+    0.0625 m upstream, on the tool's line, at 0.5 m/s reaches it after 0.125 s, so the
+    earliest meeting is no later (stepping used to jump over that window); both engines."""
+    from pnp_twin.twin.fast import mathlib
+
+    t = intercept_time(-0.0625, 0.0, 0.5, 1.0, 2.0)
+    assert t <= 0.125 + 1e-12
+    assert t == mathlib.intercept_time(-0.0625, 0.0, 0.5, 1.0, 2.0)
+    x = -0.0625 + 0.5 * t  # where the part is then: the tool gets there in time
+    assert trapezoid_time(abs(x), 1.0, 2.0) <= t + 1e-9

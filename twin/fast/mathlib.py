@@ -124,8 +124,12 @@ def intercept_time(dx: float, dy: float, v: float, v_r: float, acc: float) -> fl
         s = 1e-3
     step = s / 8.0
     hi = lo + step
-    while _late(hi, dx, dy, v, v_r, acc) > 0.0:
-        lo, hi = hi, hi + step
+    closest = -dx / v if v != 0.0 else -math.inf  # the part passes nearest the tool
+    if closest > lo and _late(closest, dx, dy, v, v_r, acc) <= 0.0:
+        hi = closest  # late falls until then: the first meeting is before it
+    else:
+        while _late(hi, dx, dy, v, v_r, acc) > 0.0:
+            lo, hi = hi, hi + step
     for _ in range(50):
         mid = 0.5 * (lo + hi)
         if _late(mid, dx, dy, v, v_r, acc) > 0.0:
