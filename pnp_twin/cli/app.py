@@ -84,6 +84,17 @@ ForceOpt = Annotated[
     bool, typer.Option("--force", help="Run even above the work limits (twin.budget).")
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
+RunDurationOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--duration",
+        min=1.0,
+        help="Feeding time per run, s (default the scenario's); the warm-up is then at most "
+        "a fifth of it.",
+    ),
+]
+"""``--duration`` of the commands that run a policy on many seeds (headroom, tune): see
+:func:`pnp_twin.cli.study_folder.with_duration`."""
 KpiOpt = Annotated[
     str,
     typer.Option(

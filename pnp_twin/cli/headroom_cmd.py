@@ -19,11 +19,21 @@ import typer
 from rich import box
 from rich.table import Table
 
-from pnp_twin.cli.app import Engine, EngineOpt, JsonOpt, KpiOpt, ScenarioArg, SetOpt, app
+from pnp_twin.cli.app import (
+    Engine,
+    EngineOpt,
+    JsonOpt,
+    KpiOpt,
+    RunDurationOpt,
+    ScenarioArg,
+    SetOpt,
+    app,
+)
 from pnp_twin.cli.console import note, stdout_console
+from pnp_twin.cli.study_folder import with_duration
 from pnp_twin.studies.headroom import BOUND_NOTE, Headroom, HeadroomSettings, check_policies
 from pnp_twin.studies.kpi_choice import parse_kpi
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets, with_overrides
+from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
 from pnp_twin.twin.output import check_out_folder, dumps_json, removed_if_refused
 
 OURS = (".study.lock", ".study.lock.json", "headroom.json")
@@ -66,15 +76,7 @@ def headroom(
         str | None,
         typer.Option("--mix", help="The best static mix (default: searched on tuning seeds)."),
     ] = None,
-    duration: Annotated[
-        float | None,
-        typer.Option(
-            "--duration",
-            min=1.0,
-            help="Feeding time per run, s (default the scenario's); the warm-up is then "
-            "at most a fifth of it.",
-        ),
-    ] = None,
+    duration: RunDurationOpt = None,
     sets: SetOpt = None,
     workers: Annotated[
         int, typer.Option("--workers", min=1, max=256, help="Worker processes.")
@@ -87,8 +89,7 @@ def headroom(
     lookahead controller and its clairvoyant bound, paired by seed."""
     sc = load_scenario(scenario, parse_sets(sets or []))
     figure = parse_kpi(kpi, sc)
-    if duration is not None:
-        sc = with_overrides(sc, {"duration": duration, "warmup": min(sc.warmup, duration / 5.0)})
+    sc = with_duration(sc, duration)
     settings = HeadroomSettings(
         seeds=seeds,
         first_seed=first_seed,

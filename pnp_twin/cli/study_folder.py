@@ -12,7 +12,9 @@ from typing import TypeVar
 
 from pnp_twin.policies import make_policy
 from pnp_twin.studies.lock import StudyLock
+from pnp_twin.twin.loader import with_overrides
 from pnp_twin.twin.output import check_out_folder
+from pnp_twin.twin.scenario import Scenario
 
 T = TypeVar("T")
 
@@ -21,6 +23,15 @@ def check_policies(policies: Iterable[str], n_robots: int) -> None:
     """Each policy spec builds for the line (a PolicyError, one line, otherwise)."""
     for spec in policies:
         make_policy(spec, n_robots)
+
+
+def with_duration(scenario: Scenario, duration: float | None) -> Scenario:
+    """``scenario`` fed for ``duration`` s (``--duration``), its warm-up at most a fifth of
+    that; as it is when None."""
+    if duration is None:
+        return scenario
+    warmup = min(scenario.warmup, duration / 5.0)
+    return with_overrides(scenario, {"duration": duration, "warmup": warmup})
 
 
 def run_locked(

@@ -12,11 +12,11 @@ from typing import Annotated
 
 import typer
 
-from pnp_twin.cli.app import Engine, EngineOpt, JsonOpt, ScenarioArg, SetOpt, app
+from pnp_twin.cli.app import Engine, EngineOpt, JsonOpt, RunDurationOpt, ScenarioArg, SetOpt, app
 from pnp_twin.cli.console import note
-from pnp_twin.cli.study_folder import run_locked
+from pnp_twin.cli.study_folder import run_locked, with_duration
 from pnp_twin.studies.tune import Tuned, TuneSettings, check_tune
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets, with_overrides
+from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json, removed_if_refused
 
 OURS = (".study.lock", ".study.lock.json", "tune.json")
@@ -63,15 +63,7 @@ def tune(
             help="A part its owner misses goes on to the robots downstream (or is lost).",
         ),
     ] = False,
-    duration: Annotated[
-        float | None,
-        typer.Option(
-            "--duration",
-            min=1.0,
-            help="Feeding time per run, s (default the scenario's); the warm-up is then at "
-            "most a fifth of it.",
-        ),
-    ] = None,
+    duration: RunDurationOpt = None,
     sets: SetOpt = None,
     workers: Annotated[
         int, typer.Option("--workers", min=1, max=256, help="Worker processes.")
@@ -82,8 +74,7 @@ def tune(
     """The settings of a controller's balancing mode (share or lane) that maximise G, or meet
     a target with the fewest parts passed on: the line to type into the controller."""
     sc = load_scenario(scenario, parse_sets(sets or []))
-    if duration is not None:
-        sc = with_overrides(sc, {"duration": duration, "warmup": min(sc.warmup, duration / 5.0)})
+    sc = with_duration(sc, duration)
     settings = TuneSettings(
         strategy=strategy.strip().lower(),
         rule=rule.strip().upper(),
