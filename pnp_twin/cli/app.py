@@ -84,6 +84,8 @@ ForceOpt = Annotated[
     bool, typer.Option("--force", help="Run even above the work limits (twin.budget).")
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
+ProcessesOpt = Annotated[int, typer.Option("--workers", min=1, max=256, help="Worker processes.")]
+"""``--workers`` of the commands that run a policy on many seeds (headroom, tune, task)."""
 RunDurationOpt = Annotated[
     float | None,
     typer.Option(

@@ -24,6 +24,7 @@ from pnp_twin.cli.app import (
     EngineOpt,
     JsonOpt,
     KpiOpt,
+    ProcessesOpt,
     RunDurationOpt,
     ScenarioArg,
     SetOpt,
@@ -78,9 +79,7 @@ def headroom(
     ] = None,
     duration: RunDurationOpt = None,
     sets: SetOpt = None,
-    workers: Annotated[
-        int, typer.Option("--workers", min=1, max=256, help="Worker processes.")
-    ] = 1,
+    workers: ProcessesOpt = 1,
     engine: EngineOpt = Engine.fast,
     as_json: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",

@@ -15,7 +15,7 @@ import typer
 from rich import box
 from rich.table import Table
 
-from pnp_twin.cli.app import Engine, EngineOpt, app
+from pnp_twin.cli.app import Engine, EngineOpt, ProcessesOpt, app
 from pnp_twin.cli.console import note, stdout_console
 from pnp_twin.twin.output import dumps_json
 
@@ -87,9 +87,7 @@ def task_score(
         int | None,
         typer.Option("--seeds", metavar="N", help="The first N evaluation seeds (default all)."),
     ] = None,
-    workers: Annotated[
-        int, typer.Option("--workers", min=1, max=256, help="Worker processes.")
-    ] = 1,
+    workers: ProcessesOpt = 1,
     engine: EngineOpt = Engine.fast,
     duration: Annotated[
         float | None,

@@ -12,7 +12,16 @@ from typing import Annotated
 
 import typer
 
-from pnp_twin.cli.app import Engine, EngineOpt, JsonOpt, RunDurationOpt, ScenarioArg, SetOpt, app
+from pnp_twin.cli.app import (
+    Engine,
+    EngineOpt,
+    JsonOpt,
+    ProcessesOpt,
+    RunDurationOpt,
+    ScenarioArg,
+    SetOpt,
+    app,
+)
 from pnp_twin.cli.console import note
 from pnp_twin.cli.study_folder import run_locked, with_duration
 from pnp_twin.studies.tune import Tuned, TuneSettings, check_tune
@@ -65,9 +74,7 @@ def tune(
     ] = False,
     duration: RunDurationOpt = None,
     sets: SetOpt = None,
-    workers: Annotated[
-        int, typer.Option("--workers", min=1, max=256, help="Worker processes.")
-    ] = 1,
+    workers: ProcessesOpt = 1,
     engine: EngineOpt = Engine.fast,
     as_json: JsonOpt = False,
 ) -> None:
