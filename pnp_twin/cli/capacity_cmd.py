@@ -25,16 +25,15 @@ from pnp_twin.cli.app import (
     WorkersOpt,
     app,
 )
+from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
 from pnp_twin.cli.study_folder import check_policies, run_locked
 from pnp_twin.studies.calibrate_eval import EVALS
-from pnp_twin.studies.capacity import SUMMARY_FILE, check_capacity, run_capacity
+from pnp_twin.studies.capacity import check_capacity, run_capacity
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.errors import UserError
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
+from pnp_twin.twin.loader import load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json
-
-OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
 
 
 @app.command("capacity")
@@ -77,8 +76,8 @@ def capacity_cmd(
     check_policies(policy or [sc.policy], sc.robots.count)
     result = run_locked(
         out,
-        {"scenario file": find_scenario(scenario)},
-        OURS,
+        "capacity",
+        inputs_of(scenario, sc, policy=policy),
         lambda cmd: run_capacity(
             sc,
             out,

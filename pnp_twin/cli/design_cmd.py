@@ -25,16 +25,14 @@ from pnp_twin.cli.app import (
     WorkersOpt,
     app,
 )
+from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
 from pnp_twin.cli.study_folder import check_policies, run_locked
-from pnp_twin.studies.calibrate_eval import EVALS
-from pnp_twin.studies.design import SUMMARY_FILE, check_design, run_design
+from pnp_twin.studies.design import check_design, run_design
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.errors import UserError
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
+from pnp_twin.twin.loader import load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json
-
-OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
 
 
 @app.command("design")
@@ -88,8 +86,8 @@ def design_cmd(
     check_policies(policy or [sc.policy], sc.robots.count)
     result = run_locked(
         out,
-        {"scenario file": find_scenario(scenario), "costs": costs},
-        OURS,
+        "design",
+        inputs_of(scenario, sc, costs=costs, policy=policy),
         lambda cmd: run_design(
             sc,
             out,

@@ -21,12 +21,12 @@ from rich import box
 from rich.table import Table
 
 from pnp_twin.cli.app import Engine, ScenarioArg, SetOpt, app
+from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note, stderr_console, stdout_console
 from pnp_twin.policies import make_policy
 from pnp_twin.twin.budget import check_run
 from pnp_twin.twin.loader import (
     ScenarioError,
-    find_scenario,
     load_scenario,
     parse_sets,
     shipped_scenarios,
@@ -133,7 +133,7 @@ def run(
             if other is not None and same_file(report, other):
                 raise OutputError(f"--report: '{report}' is the file {option} writes")
     scn = _load(scenario, sets)
-    inputs = {"scenario file": find_scenario(scenario), "trace": trace_file(scn)}
+    inputs = inputs_of(scenario, scn, policy=policy)
     traces = trace_files(scn)
     if len(traces) > 1:  # one run, one trace: the first (a study replays trace k in rep k)
         note(

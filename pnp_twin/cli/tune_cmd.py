@@ -22,14 +22,12 @@ from pnp_twin.cli.app import (
     SetOpt,
     app,
 )
+from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
 from pnp_twin.cli.study_folder import run_locked, with_duration
 from pnp_twin.studies.tune import Tuned, TuneSettings, check_tune
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
-from pnp_twin.twin.output import dumps_json, removed_if_refused
-
-OURS = (".study.lock", ".study.lock.json", "tune.json")
-"""Entries that make a folder a tune study of ours (run again into it: rewritten)."""
+from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.output import dumps_json
 
 
 @app.command("tune")
@@ -101,8 +99,7 @@ def tune(
         write_tune(result, out)
         return result
 
-    with removed_if_refused(out):
-        result = run_locked(out, {"scenario file": find_scenario(scenario)}, OURS, work)
+    result = run_locked(out, "tune", inputs_of(scenario, sc), work)
     if as_json:
         typer.echo(dumps_json(result.to_json(), indent=2))
         return

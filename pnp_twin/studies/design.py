@@ -54,6 +54,7 @@ from pnp_twin.studies.calibrate_eval import Evaluator
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import StudyError, field_path_error
 from pnp_twin.studies.seeds import replication_seeds
+from pnp_twin.twin.inputs import COSTS_BYTES, read_user_text
 from pnp_twin.twin.loader import ScenarioError, parse_value, with_overrides
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.scenario import Scenario
@@ -141,11 +142,10 @@ def read_costs(path: Path | None) -> dict[str, Any]:
     if path is None:
         return {"robot_price": 1.0, "belt_price": 0.0, "lost_part_cost": 0.0, "hours": 0.0}
     where = f"--costs {path}"
+    text = read_user_text(path, "--costs", COSTS_BYTES, StudyError)
     try:
-        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as e:
-        raise StudyError(f"{where}: cannot read ({e.strerror or type(e).__name__})") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
         raise StudyError(f"{where}: not valid TOML ({str(e).splitlines()[0]})") from None
     unknown = sorted(set(data) - set(COST_KEYS))
     if unknown:

@@ -38,7 +38,8 @@ from pnp_twin.policies.hdqn.agent import AgentConfig, QAgent
 from pnp_twin.policies.hdqn.features import size as feature_size
 from pnp_twin.policies.hdqn.network import PRESETS
 from pnp_twin.policies.registry import rule_names
-from pnp_twin.twin.errors import UserError, file_kind
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.inputs import file_kind
 from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
