@@ -332,7 +332,8 @@ def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> di
         for depth, key in enumerate(keys[:-1]):
             child = node.get(key)
             where = ".".join(keys[: depth + 1])
-            if keys[depth + 1].isdigit():  # one element of a list, e.g. robots.bin_offset.1
+            index = keys[depth + 1]
+            if index.isascii() and index.isdigit():  # one element of a list: robots.bin_offset.1
                 if child is None:
                     child = _default(keys[: depth + 1])
                 if isinstance(child, list | tuple):

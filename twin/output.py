@@ -92,10 +92,15 @@ def check_not_inputs(
             )
         if path is not None and _inside(output, path):
             raise OutputError(
-                f"{option}: '{clip(str(output))}' lies inside the {what} folder "
+                f"{option}: '{clip(str(output))}' lies inside the {_folder(what)} "
                 f"'{clip(str(path))}' this command reads; writing there would change its "
                 "inputs; give a file elsewhere"
             )
+
+
+def _folder(what: str) -> str:
+    """``what`` named as a folder once: "trace folder", "policy folder"."""
+    return what if "folder" in what else f"{what} folder"
 
 
 def _inside(output: str | Path, folder: str | Path) -> bool:
@@ -132,7 +137,7 @@ def check_out_folder(
         q = Path(path).resolve()
         if q.is_dir() and (q == root or q in root.parents):
             raise OutputError(
-                f"{option} {clip(str(p))}: lies inside the {what} folder '{clip(str(path))}' "
+                f"{option} {clip(str(p))}: lies inside the {_folder(what)} '{clip(str(path))}' "
                 "this command reads; writing there would change its inputs; choose another "
                 "folder"
             )

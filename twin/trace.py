@@ -130,6 +130,18 @@ def for_replication(scenario: Scenario, replication: int) -> Scenario:
     return scenario.model_copy(update={"feeder": feeder})
 
 
+def check_replications(scenario: Scenario, n: int, option: str = "replications") -> None:
+    """Refuse ``n`` replications (or seeds) of a scenario replaying fewer than ``n`` traces
+    of a list or folder: replication k replays trace k everywhere, so a trace never counts
+    twice and the same replication never replays another trace (checked before any run)."""
+    files = trace_files(scenario)
+    if len(files) > 1 and n > len(files):
+        raise TraceError(
+            f"{option}: {n} asked, but feeder.trace holds {len(files)} traces and replication "
+            f"k replays trace k; give at most {len(files)}, or more traces"
+        )
+
+
 def resolve(trace: str, source_dir: str | Path | None) -> Path:
     """A trace path as a scenario file names it: relative ones from the file's folder."""
     path = Path(trace)

@@ -47,16 +47,17 @@ def inputs_of(scenario: str | Path | None, sc: Scenario | None = None, **more: o
     if sc is not None:
         for i, path in enumerate(trace_files(sc)):
             out[f"trace {i + 1}" if i else "trace"] = path
-        for name in _trace_names(sc):
-            path = Path(name)
-            if not path.is_absolute() and sc.source_dir:
-                path = Path(sc.source_dir) / path
-            if path.is_dir():
-                out[f"trace folder {path.name}"] = path
+        folders = [p for p in map(Path, _trace_names(sc)) if _under(p, sc.source_dir).is_dir()]
+        for i, path in enumerate(folders):
+            out[f"trace folder {i + 1}" if i else "trace folder"] = _under(path, sc.source_dir)
     for label, value in more.items():
         for i, path in enumerate(_paths(value)):
             out[f"{label} {i + 1}" if i else label] = path
     return out
+
+
+def _under(path: Path, source_dir: str | Path | None) -> Path:
+    return path if path.is_absolute() or not source_dir else Path(source_dir) / path
 
 
 def _trace_names(sc: Scenario) -> list[str]:

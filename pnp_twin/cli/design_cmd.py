@@ -33,6 +33,7 @@ from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json
+from pnp_twin.twin.trace import trace_files
 
 
 @app.command("design")
@@ -80,6 +81,10 @@ def design_cmd(
         raise UserError(f"--out {out}: is a file; give a folder")
     if not vary and not policy:
         raise UserError("--vary: give at least one field to vary, e.g. --vary robots.count=3:8")
+    traces = len(trace_files(sc))
+    if traces > 1 and max_replications > traces:  # trace k in replication k: each once
+        max_replications, replications = traces, min(replications, traces)
+        note(f"feeder.trace: {traces} traces, so at most {traces} replications (trace k each)")
     check_design(
         sc, target, vary or [], costs, confidence, replications, max_replications, trials
     )  # every mistake is one line before the folder exists

@@ -31,6 +31,7 @@ from pnp_twin.learning.train_args import TrainArgs, field_help
 from pnp_twin.parallel import BACKENDS, pool_map_ordered, ray_map
 from pnp_twin.twin.folder_kind import write_kind
 from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.trace import check_replications
 
 TD_RULES = "FIFO,LIFO,SIRO,SD,LD,SPT"
 
@@ -409,6 +410,7 @@ def evaluate_cmd(
         )
     reference = target if prefix.lower() == "hdqn" else policy
     line = load_scenario(scenario, parse_sets(sets or []))
+    check_replications(line, seeds, "--seeds")  # seed k replays trace k
     if mix is not None:
         make_policy(mix, line.robots.count)  # a bad mix fails here, in one line
     if out is not None and out.exists() and not out.is_dir():

@@ -200,6 +200,11 @@ def read_targets(path: str | Path) -> Targets:
                 f"--targets {p}: row {bad[0] + 1}, column weight: {weight[bad[0]]} is not "
                 f"allowed; give a finite number >= 0"
             )
+        if not weight.sum() > 0:
+            raise StudyError(
+                f"--targets {p}: column weight: every row's weight is 0, so no point counts "
+                "and nothing can be fitted; give at least one row a weight above 0"
+            )
     values = []
     for i in range(len(frame)):
         cells = []

@@ -59,7 +59,7 @@ from pnp_twin.twin.loader import ScenarioError, parse_value, with_overrides
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.stats import t_interval
-from pnp_twin.twin.trace import trace_files
+from pnp_twin.twin.trace import check_replications, for_replication, trace_files
 
 SUMMARY_FILE = "design.json"
 COST_KEYS = ("robot_price", "belt_price", "lost_part_cost", "hours")
@@ -276,6 +276,7 @@ def check_design(
             "meets the target; give several traces (feeder.trace = a list or a folder) or add "
             "--set feeder.arrival=poisson (or normal) for random arrivals at its mean rate"
         )
+    check_replications(scenario, most, "--max-replications")  # trace k in replication k
     costs = read_costs(costs_file)
     grid = parse_grid(vary)
     box = {p: r for p, r in grid.items() if isinstance(r, Continuous)}
@@ -365,7 +366,8 @@ def run_design(
                 if not need:
                     continue
                 ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine)
-                rows = ev.runs([c.scenario for c in need], [c.label() for c in need])
+                lines = [for_replication(c.scenario, rep) for c in need]  # trace k in rep k
+                rows = ev.runs(lines, [c.label() for c in need])
                 simulated += ev.simulated
                 replayed += ev.replayed
                 for c, r in zip(need, rows, strict=True):

@@ -32,7 +32,8 @@ from pnp_twin.policies.rules import RULES
 from pnp_twin.studies.plan import StudyError
 from pnp_twin.twin.run import simulate
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.stats import t_interval
+from pnp_twin.twin.stats import percent_interval
+from pnp_twin.twin.trace import check_replications, for_replication
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +87,7 @@ class Scored:
 
     def __post_init__(self) -> None:
         if len(self.g) >= 2:
-            self.mean, self.low, self.high = t_interval(self.g, 0.95)
+            self.mean, self.low, self.high = percent_interval(self.g, 0.95)
         elif self.g:
             self.mean = self.low = self.high = self.g[0]
 
@@ -168,6 +169,7 @@ def check_tune(scenario: Scenario, settings: TuneSettings) -> None:
         raise StudyError(f"--rule: '{settings.rule}' is not a rule; allowed {', '.join(RULES)}")
     if scenario.robots.count < 2:
         raise StudyError(f"tune: {scenario.name} has one robot; there is nothing to balance")
+    check_replications(scenario, max(settings.seeds, settings.tuning_seeds), "--seeds")
     if settings.target is not None and not 0 < settings.target <= 100:
         raise StudyError(f"--target: {settings.target:g} is outside 0..100 (% of parts)")
     make_policy(settings.lookahead, scenario.robots.count)
@@ -201,7 +203,7 @@ def score(scenario: Scenario, spec: str, seeds: Sequence[int], settings: TuneSet
     """``spec`` run on ``seeds`` (in ``settings.workers`` processes)."""
     from pnp_twin.parallel import pool_map_ordered
 
-    jobs = [(scenario, spec, s, settings.engine) for s in seeds]
+    jobs = [(for_replication(scenario, k), spec, s, settings.engine) for k, s in enumerate(seeds)]
     if settings.workers > 1 and len(jobs) > 1:
         out = pool_map_ordered(_one, jobs, settings.workers)
     else:
