@@ -17,6 +17,7 @@ import typer
 from pnp_twin.cli.app import (
     Engine,
     EngineOpt,
+    ForceOpt,
     JsonOpt,
     KpiOpt,
     NoReportOpt,
@@ -31,6 +32,7 @@ from pnp_twin.cli.study_folder import check_policies, run_locked
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.capacity import check_capacity, run_capacity
 from pnp_twin.studies.kpi_choice import parse_kpi
+from pnp_twin.twin.budget import check_study
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json
@@ -66,6 +68,7 @@ def capacity_cmd(
     no_report: NoReportOpt = False,
     json_out: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
+    force: ForceOpt = False,
 ) -> None:
     """The highest part flow the line sustains at a target gripping rate, with its interval."""
     sc = load_scenario(scenario, parse_sets(sets or []))
@@ -74,6 +77,7 @@ def capacity_cmd(
         raise UserError(f"--out {out}: is a file; give a folder")
     check_capacity(sc, target, confidence, replications, vary or [], start)  # before the folder
     check_policies(policy or [sc.policy], sc.robots.count)
+    check_study(sc, {}, len(policy or [sc.policy]), replications, force)  # work limit
     result = run_locked(
         out,
         "capacity",

@@ -17,6 +17,7 @@ import typer
 from pnp_twin.cli.app import (
     Engine,
     EngineOpt,
+    ForceOpt,
     JsonOpt,
     KpiOpt,
     NoReportOpt,
@@ -30,6 +31,7 @@ from pnp_twin.cli.console import note
 from pnp_twin.cli.study_folder import check_policies, run_locked
 from pnp_twin.studies.design import check_design, run_design
 from pnp_twin.studies.kpi_choice import parse_kpi
+from pnp_twin.twin.budget import check_study
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json
@@ -73,6 +75,7 @@ def design_cmd(
     no_report: NoReportOpt = False,
     json_out: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
+    force: ForceOpt = False,
 ) -> None:
     """The cheapest configuration meeting a target gripping rate with a confidence."""
     sc = load_scenario(scenario, parse_sets(sets or []))
@@ -89,6 +92,7 @@ def design_cmd(
         sc, target, vary or [], costs, confidence, replications, max_replications, trials
     )  # every mistake is one line before the folder exists
     check_policies(policy or [sc.policy], sc.robots.count)
+    check_study(sc, {}, len(policy or [sc.policy]), max_replications, force)  # work limit
     result = run_locked(
         out,
         "design",

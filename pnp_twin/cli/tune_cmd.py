@@ -15,6 +15,7 @@ import typer
 from pnp_twin.cli.app import (
     Engine,
     EngineOpt,
+    ForceOpt,
     JsonOpt,
     ProcessesOpt,
     RunDurationOpt,
@@ -26,6 +27,7 @@ from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
 from pnp_twin.cli.study_folder import run_locked, with_duration
 from pnp_twin.studies.tune import Tuned, TuneSettings, check_tune
+from pnp_twin.twin.budget import check_study
 from pnp_twin.twin.loader import load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json
 
@@ -75,6 +77,7 @@ def tune(
     workers: ProcessesOpt = 1,
     engine: EngineOpt = Engine.fast,
     as_json: JsonOpt = False,
+    force: ForceOpt = False,
 ) -> None:
     """The settings of a controller's balancing mode (share or lane) that maximise G, or meet
     a target with the fewest parts passed on: the line to type into the controller."""
@@ -92,6 +95,7 @@ def tune(
         workers=workers,
     )
     check_tune(sc, settings)  # everything refusable before the folder is made
+    check_study(sc, {}, trials + 2, seeds + tuning_seeds, force)  # work limit
     from pnp_twin.studies.tune import run_tune
 
     def work(_: str) -> Tuned:
