@@ -20,6 +20,7 @@ import math
 import os
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from numbers import Integral
@@ -64,17 +65,8 @@ def _limit(seconds: float) -> Iterator[None]:
         yield
         return
     if threading.current_thread() is threading.main_thread():
-
-        def alarm(signum: int, frame: Any) -> None:
-            raise DecisionTimeout
-
-        previous = signal.signal(signal.SIGALRM, alarm)
-        signal.setitimer(signal.ITIMER_REAL, seconds)
-        try:
+        with _alarm(seconds):
             yield
-        finally:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, previous)
         return
     ident = threading.get_ident()
     timer = threading.Timer(
@@ -88,6 +80,30 @@ def _limit(seconds: float) -> Iterator[None]:
         yield
     finally:
         timer.cancel()
+
+
+@contextmanager
+def _alarm(seconds: float) -> Iterator[None]:
+    """``SIGALRM`` after ``seconds``, keeping an outer alarm (a caller's own time limit):
+    it still rings at its time, and is set again for what is left of it afterwards."""
+    outer, _ = signal.getitimer(signal.ITIMER_REAL)
+    start = time.monotonic()
+
+    def ring(signum: int, frame: Any) -> None:
+        if time.monotonic() - start >= seconds - 1e-3:
+            raise DecisionTimeout
+        if callable(previous):  # the outer alarm's time came first
+            previous(signum, frame)
+
+    previous = signal.signal(signal.SIGALRM, ring)
+    signal.setitimer(signal.ITIMER_REAL, min(seconds, outer) if outer > 0 else seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+        if outer > 0:
+            signal.setitimer(signal.ITIMER_REAL, max(outer - (time.monotonic() - start), 1e-3))
 
 
 def _where(decision: Decision) -> str:

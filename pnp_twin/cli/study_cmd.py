@@ -177,10 +177,12 @@ def progress_bar(label: str) -> Iterator[Any]:
     except BaseException:
         if not state["last"]:  # nothing done: the error line alone says what happened
             bar.live.transient = True
+            console.quiet = True  # not even the line the bar would end with
         raise
     finally:
         if bar.live.is_started:
             bar.stop()
+        console.quiet = False
 
 
 def _options(

@@ -30,6 +30,8 @@ from pnp_twin.policies import make_policy
 from pnp_twin.policies.balancing import BalancingSettings
 from pnp_twin.policies.rules import RULES
 from pnp_twin.studies.plan import StudyError
+from pnp_twin.twin.budget import estimate_run
+from pnp_twin.twin.errors import excerpt
 from pnp_twin.twin.run import simulate
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.stats import percent_interval
@@ -166,7 +168,9 @@ def check_tune(scenario: Scenario, settings: TuneSettings) -> None:
             f"--strategy: '{settings.strategy}' is not allowed; allowed {', '.join(STRATEGIES)}"
         )
     if settings.rule not in (*RULES, "VAL"):
-        raise StudyError(f"--rule: '{settings.rule}' is not a rule; allowed {', '.join(RULES)}")
+        raise StudyError(
+            f"--rule: {excerpt(settings.rule, 40)} is not a rule; allowed {', '.join(RULES)}"
+        )
     if scenario.robots.count < 2:
         raise StudyError(f"tune: {scenario.name} has one robot; there is nothing to balance")
     check_replications(scenario, max(settings.seeds, settings.tuning_seeds), "--seeds")
@@ -199,12 +203,16 @@ def _one(job: tuple[Scenario, str, int, str]) -> tuple[float, float]:
     return float(k["gripping_rate"]), float(sum(r["passed_on"] for r in k["robots"]))
 
 
+POOL_PARTS = 200_000  # parts below which a worker pool costs more than it saves (~2 s)
+
+
 def score(scenario: Scenario, spec: str, seeds: Sequence[int], settings: TuneSettings) -> Scored:
     """``spec`` run on ``seeds`` (in ``settings.workers`` processes)."""
     from pnp_twin.parallel import pool_map_ordered
 
     jobs = [(for_replication(scenario, k), spec, s, settings.engine) for k, s in enumerate(seeds)]
-    if settings.workers > 1 and len(jobs) > 1:
+    parts = estimate_run(scenario).parts * len(jobs)  # a pool costs seconds to start
+    if settings.workers > 1 and len(jobs) > 1 and parts >= POOL_PARTS:
         out = pool_map_ordered(_one, jobs, settings.workers)
     else:
         out = [_one(job) for job in jobs]
