@@ -273,7 +273,8 @@
     this.scrub.value = t;
     if (this.diffBox && this.lanes.length === 2) {
       var a = this.lanes[0].g.g, b = this.lanes[1].g.g;
-      this.diffBox.textContent = isNaN(a - b) ? "" : "G difference so far " + (a - b >= 0 ? "+" : "") + (a - b).toFixed(1) + " points";
+      var diff = b - a, names = this.lanes[1].d.title + " \u2212 " + this.lanes[0].d.title;
+      this.diffBox.textContent = isNaN(diff) ? "" : "G so far, " + names + ": " + (diff >= 0 ? "+" : "") + diff.toFixed(1) + " points";
     }
   };
   Replay.prototype.seek = function (t) { this.t = Math.min(Math.max(t, this.t0), this.t1); this.draw(); };

@@ -336,3 +336,19 @@ def parts_at(data: Mapping[str, Any], t: float) -> dict[int, tuple[float, float]
             tools = tools or tools_at(data, t)
             out[pid] = tools[p["robot"][i]]
     return out
+
+
+def running_g(data: Mapping[str, Any], t: float) -> tuple[int, int]:
+    """(picked, lost) by ``t`` of the parts G counts (fed after the warm-up, of a kind some
+    robot picks), as the page's clock shows them."""
+    p = data["parts"]
+    picked, lost = data["before"]["picked"], data["before"]["lost"]
+    t0 = data["t0"]
+    for i in range(len(p["id"])):
+        if not p["counted"][i]:
+            continue
+        if p["fate"][i] == 0 and p["picked"][i] is not None and t0 <= p["picked"][i] < t:
+            picked += 1
+        elif p["fate"][i] == 1 and t0 <= p["left"][i] < t:
+            lost += 1
+    return picked, lost
