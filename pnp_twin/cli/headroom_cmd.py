@@ -4,7 +4,8 @@ Runs :func:`pnp_twin.studies.headroom.run_headroom` (best rule, best static mix,
 policies, the lookahead controller and its clairvoyant bound, paired by seed) and writes
 ``headroom.json``, ``runs.csv``, ``summary.csv`` and ``report.html`` into ``--out`` (under the
 folder's study lock, each file written atomically); prints the answer and a table, or the
-JSON with ``--json``.
+JSON with ``--json``. Every run is stored in ``--out``'s ``evals/runs.sqlite`` as it finishes,
+so the same command after a kill resumes: finished runs are read back, not simulated.
 """
 
 from __future__ import annotations
@@ -32,12 +33,13 @@ from pnp_twin.cli.app import (
 )
 from pnp_twin.cli.console import note, stdout_console
 from pnp_twin.cli.study_folder import with_duration
+from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.headroom import BOUND_NOTE, Headroom, HeadroomSettings, check_policies
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
 from pnp_twin.twin.output import check_out_folder, dumps_json, removed_if_refused
 
-OURS = (".study.lock", ".study.lock.json", "headroom.json")
+OURS = (".study.lock", ".study.lock.json", "headroom.json", EVALS)
 """Entries that make a folder a headroom study of ours (run again into it: rewritten)."""
 
 
@@ -103,12 +105,14 @@ def headroom(
     check_out_folder(out, {"scenario file": find_scenario(scenario)}, OURS)
     from pnp_twin.studies.headroom import run_headroom
     from pnp_twin.studies.lock import StudyLock
+    from pnp_twin.studies.runstore import open_store
 
     with removed_if_refused(out):
         lock = StudyLock(out)
         lock.acquire(shlex.join(["pnp-twin", *sys.argv[1:]]))
         try:
-            result = run_headroom(sc, settings, _progress)
+            with open_store(out / EVALS) as store:  # every run as it finishes: a kill resumes
+                result = run_headroom(sc, settings, _progress, store)
             write_headroom(result, out)
         finally:
             lock.release()

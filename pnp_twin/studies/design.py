@@ -32,7 +32,7 @@ reaches the target, *missed* when its upper bound is below it, *open* otherwise;
 open configuration could still be cheaper than the cheapest met one, the open ones that
 could are doubled in replications (up to ``most``), nowhere else. Every run is journalled
 per configuration, rule and seed under ``DIR/evals/`` the moment it finishes
-(:mod:`pnp_twin.studies.runlog`), so a killed design resumes without running a finished run
+(:mod:`pnp_twin.studies.runstore`), so a killed design resumes without running a finished run
 again, and asking again with another target, confidence or cost file simulates only the
 replications the new question needs.
 """
@@ -50,9 +50,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pnp_twin.studies.calibrate_eval import Evaluator
+from pnp_twin.studies.calibrate_eval import EVALS, Evaluator
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import StudyError, field_path_error
+from pnp_twin.studies.runstore import RunStore
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.twin.loader import ScenarioError, parse_value, with_overrides
 from pnp_twin.twin.output import write_json
@@ -337,6 +338,7 @@ def run_design(
     k = len(groups) * (trials if box else 1)
     level = 1.0 - (1.0 - confidence) / (k * looks(first, most))
     seeds = replication_seeds(scenario.seed, most)
+    store = RunStore(Path(out) / EVALS)  # one store for every batch: opened once
     simulated = replayed = 0
     configs: list[Config] = []
     # the KPIs each run keeps (part of its journal key: G's runs serve G and, on a line
@@ -364,8 +366,10 @@ def run_design(
                 need = [c for c in mine if len(c.g) == rep]
                 if not need:
                     continue
-                ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine)
-                rows = ev.runs([c.scenario for c in need], [c.label() for c in need])
+                ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine, store)
+                rows = ev.runs(
+                    [c.scenario for c in need], [c.label() for c in need], [c.values for c in need]
+                )
                 simulated += ev.simulated
                 replayed += ev.replayed
                 for c, r in zip(need, rows, strict=True):
