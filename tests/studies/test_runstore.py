@@ -100,8 +100,8 @@ def test_a_design_on_a_damaged_store_exits_2_in_one_line(tmp_path: Path) -> None
     (out / "evals").mkdir(parents=True)
     (out / "evals" / STORE_FILE).write_bytes(b"\x00garbage" * 512)
     args = ["design", str(BASELINE), "--target", "80", "--vary", "robots.count=2,3", "-r", "2",
-            "--max-replications", "2", "--set", "duration=20", "--set", "warmup=4", "--no-report", "--out", str(out),
-            "--workers", "1"]  # fmt: skip
+            "--max-replications", "2", "--set", "duration=20", "--set", "warmup=4",
+            "--no-report", "--out", str(out), "--workers", "1"]  # fmt: skip
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 2, result.output
     assert "runs.sqlite: is damaged" in result.stderr and "Traceback" not in result.output
