@@ -124,9 +124,6 @@ class Evaluator:
         store: RunStore | None = None,
     ) -> None:
         self.folder = Path(folder) / EVALS
-        self.folder.mkdir(parents=True, exist_ok=True)
-        for tmp in self.folder.glob(".*.tmp"):  # left by a write that was killed mid-way
-            tmp.unlink(missing_ok=True)
         self.policies = tuple(policies)
         self.seeds = tuple(seeds)
         self.kpis = tuple(dict.fromkeys([BEST_BY, *kpis]))

@@ -197,15 +197,21 @@ class Config:
         self.g: list[float] = []  # the gripping rate per replication (the lost parts' cost)
         self.y: list[float] = []  # the figure the target is on (--kpi; G by default)
         self.flow: list[float] = []
+        self._bounds: dict[tuple[float, int], tuple[float, float, float]] = {}
 
     def label(self) -> str:
         return ", ".join(f"{k}={v}" for k, v in self.values.items()) + f", {self.policy}"
 
     def bounds(self, level: float) -> tuple[float, float, float]:
-        mean, low, high = t_interval(self.y, level)
-        low = max(low, 0.0) if math.isfinite(low) else 0.0
-        high = min(high, 100.0) if math.isfinite(high) else 100.0
-        return mean, low, high
+        # kept per count of runs (runs are only ever appended): a design asks every
+        # configuration's bounds at each point, thousands of times over
+        key = (level, len(self.y))
+        if key not in self._bounds:
+            mean, low, high = t_interval(self.y, level)
+            low = max(low, 0.0) if math.isfinite(low) else 0.0
+            high = min(high, 100.0) if math.isfinite(high) else 100.0
+            self._bounds[key] = mean, low, high
+        return self._bounds[key]
 
     def lost_cost(self, costs: Mapping[str, Any]) -> float:
         if not self.g:
@@ -345,17 +351,29 @@ def run_design(
     # without kinds, the value rate; another figure's are its own)
     kept = ["part_flow"] + ([] if kpi.column == "gripping_rate" else [kpi.column])
 
+    known: dict[tuple[Any, ...], Config] = {}  # (rule, values): found at once, not searched
+    met_cost: dict[Config, float] = {}  # each met configuration's total cost
+    changed: set[Config] = set()  # configurations with new runs since best_met() looked
+    unknown: set[Config] = set()  # met configurations whose total cost is NaN
+
     def config(values: dict[str, Any], rule: str) -> Config:
         values = {p: values[p] for p in grid}  # the order the fields were given in
-        for c in configs:
-            if c.policy == rule and c.values == values:
-                return c
+        try:
+            found = known.get((rule, *values.items()))
+        except TypeError:  # a value that is a list: searched
+            found = next((c for c in configs if c.policy == rule and c.values == values), None)
+        if found is not None:
+            return found
         try:
             sc = with_overrides(scenario, values) if values else scenario
         except ScenarioError as e:
             raise StudyError(f"--vary {values}: {e}") from None
         c = Config(values, rule, sc, capital(costs, sc))
         configs.append(c)
+        try:
+            known[(rule, *values.items())] = c
+        except TypeError:
+            pass
         return c
 
     def extend(todo: list[Config], n: int) -> None:
@@ -376,12 +394,24 @@ def run_design(
                     c.g.append(float(r[rule][0]["gripping_rate"]))
                     c.y.append(float(r[rule][0][kpi.column]))
                     c.flow.append(float(r[rule][0]["part_flow"]))
+                    changed.add(c)
         if progress is not None:
             progress(sum(len(c.g) for c in configs), k * most)
 
     def best_met() -> float:
-        met = [c for c in configs if _state(c, level, target) == "met"]
-        return min((c.capital + c.lost_cost(costs) for c in met), default=math.inf)
+        """The cheapest met configuration's total cost; only configurations with new runs
+        are looked at again (looking at all at every point made a design quadratic)."""
+        for c in changed:
+            met_cost.pop(c, None)
+            unknown.discard(c)
+            if _state(c, level, target) == "met":
+                met_cost[c] = c.capital + c.lost_cost(costs)
+                if math.isnan(met_cost[c]):
+                    unknown.add(c)
+        changed.clear()
+        if unknown:  # a NaN cost: the minimum then depends on the order, the configurations'
+            return min((met_cost[c] for c in configs if c in met_cost), default=math.inf)
+        return min(met_cost.values(), default=math.inf)
 
     def decide(c: Config) -> None:
         """Replications for one point, doubled while it is open and could be the cheapest."""

@@ -27,6 +27,8 @@ A store that is not an SQLite database, or has no readable ``runs`` table, or wa
 a newer version is refused with one line (:class:`StudyError`). A row whose ``kpis`` cannot
 be read is treated as absent (a warning is logged) and its run done again. The command that
 writes the store holds the folder's lock, so one process writes at a time; others may read.
+Opening the store also removes the temporaries (``.*.tmp``) that a killed atomic write of a
+point's file left in the folder, once per study rather than once per batch.
 """
 
 from __future__ import annotations
@@ -73,6 +75,8 @@ class RunStore:
         self.folder = Path(folder)
         self.path = self.folder / STORE_FILE
         self.folder.mkdir(parents=True, exist_ok=True)
+        for tmp in self.folder.glob(".*.tmp"):  # a point's file whose write was killed mid-way
+            tmp.unlink(missing_ok=True)
         self._db = _connect(self.path)
         try:
             self._prepare()

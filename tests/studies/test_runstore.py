@@ -106,3 +106,21 @@ def test_a_design_on_a_damaged_store_exits_2_in_one_line(tmp_path: Path) -> None
     assert result.exit_code == 2, result.output
     assert "runs.sqlite: is damaged" in result.stderr and "Traceback" not in result.output
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_design_folder_exports_its_stored_runs(tmp_path: Path) -> None:
+    """``export`` reads the store: one row per run with its values, policy, seed, KPIs."""
+    import pandas as pd
+
+    out = tmp_path / "d"
+    args = ["design", str(BASELINE), "--target", "80", "--vary", "robots.count=2,3", "-r", "2",
+            "--max-replications", "2", "-p", "SD", "--set", "duration=20", "--set", "warmup=4",
+            "--no-report", "--out", str(out), "--workers", "1"]  # fmt: skip
+    assert CliRunner().invoke(app, args).exit_code == 0
+    book = tmp_path / "d.xlsx"
+    result = CliRunner().invoke(app, ["export", str(out), "--xlsx", str(book)])
+    assert result.exit_code == 0, result.output
+    runs = pd.read_excel(book, sheet_name="runs")
+    assert len(runs) == 4 == stored_runs(out / "evals")
+    assert sorted(runs["robots.count"]) == [2, 2, 3, 3] and set(runs["policy"]) == {"SD"}
+    assert runs["gripping_rate (%)"].between(0, 100).all() and runs["seed"].nunique() == 2
