@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.calibrate_eval import EVALS, Evaluator
+from pnp_twin.studies.design_answer import answered, question_key
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import StudyError, field_path_error
 from pnp_twin.studies.runstore import RunStore
@@ -340,6 +341,14 @@ def run_design(
     t0 = time.perf_counter()
     box = {p: r for p, r in grid.items() if isinstance(r, Continuous)}
     rules = list(policies or [scenario.policy])
+    asked = {"target": target, "confidence": confidence, "vary": grid, "first": first}
+    question = question_key(scenario, {**asked, "most": most, "trials": trials}, rules, costs, kpi)
+    done = answered(Path(out) / SUMMARY_FILE, question)  # the same question, answered before
+    if done is not None:
+        done |= {"simulated": 0, "replayed": done["runs"], "command": command}
+        done["wall_time"] = time.perf_counter() - t0
+        write_json(done, Path(out) / SUMMARY_FILE, keep_nan=True)
+        return done
     groups: list[tuple[dict[str, Any], str]] = [(v, rule) for v in combos for rule in rules]
     k = len(groups) * (trials if box else 1)
     level = 1.0 - (1.0 - confidence) / (k * looks(first, most))
@@ -497,6 +506,7 @@ def run_design(
         "scenario_name": scenario.name,
         "command": command,
         "wall_time": time.perf_counter() - t0,
+        "question": question,  # design_answer: the same question asked again is read back
     }
     result["text"] = design_text(result, kpi)
     write_json(result, Path(out) / SUMMARY_FILE, keep_nan=True)
