@@ -16,7 +16,8 @@ worker. Timed, each side in its own interpreter with only its own tree on ``PYTH
   (the format the before side writes; the points' files are the same), so ``--quick`` can
   skip the before side's slow first run;
 - **migrate + ask again**: the after side on a copy of that jsonl folder (the log imported
-  into ``runs.sqlite`` once, then every point replayed).
+  into ``runs.sqlite`` once, then optuna's search replayed over the stored runs: a folder of
+  the before side holds no question key, so its answer is not read back).
 
 Both sides' ``design.json`` (timings and counts aside) must be equal; the exit code is 1 if not.
 """
@@ -38,7 +39,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 BEFORE = "29096cf"  # the last commit whose design journals runs in evals/runs.jsonl
 GROUPS = 8 * 3  # robot counts x rules: optuna's searches, each of --trials points
-VOLATILE = ("wall_time", "command", "simulated", "replayed")
+VOLATILE = ("wall_time", "command", "simulated", "replayed", "question")
 
 
 def design_args(out: Path, trials: int) -> list[str]:
@@ -67,6 +68,9 @@ def as_jsonl(folder: Path, into: Path) -> None:
     """``folder`` (a finished design) with its store written out as the before side's
     ``evals/runs.jsonl``: one ``{"key": ..., "row": {...}}`` line per run, in run order."""
     shutil.copytree(folder, into, ignore=shutil.ignore_patterns("runs.sqlite*"))
+    answer = json.loads((into / "design.json").read_text(encoding="utf-8"))
+    answer.pop("question", None)  # as the before side wrote it: the search runs again
+    (into / "design.json").write_text(json.dumps(answer), encoding="utf-8")
     db = sqlite3.connect(folder / "evals" / "runs.sqlite")
     rows = db.execute("SELECT key, kpis FROM runs ORDER BY rowid").fetchall()
     db.close()
