@@ -14,9 +14,15 @@ The table, readable with any SQLite client (schema version in ``PRAGMA user_vers
         point       TEXT,              -- JSON object: the configuration's varied values
         policy      TEXT,              -- the policy (rule, mix or spec) that ran
         seed        INTEGER,           -- the run's seed
-        kpis        TEXT NOT NULL,     -- JSON object: KPI name -> value (null: NaN)
+        kpis        TEXT NOT NULL,     -- JSON object: KPI name -> value (strict JSON)
+        special     TEXT,              -- JSON object: the KPIs stored as null that are NaN or
+                                       -- infinite, e.g. {"cycle_time_mean": "NaN"}
         finished_at TEXT               -- ISO 8601 UTC
     )
+
+A NaN or infinite KPI is ``null`` in ``kpis`` (so SQLite's ``json_extract`` reads every row,
+and ``avg`` skips it) and named in ``special``, so the row reads back exactly: NaN as NaN, a
+``None`` as ``None``.
 
 A folder journalled by an earlier version (``evals/runs.jsonl``, one JSON line per run) is
 migrated when the store is first opened: its rows are imported in one transaction, then the
@@ -37,7 +43,7 @@ import json
 import logging
 import math
 import sqlite3
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
@@ -59,11 +65,13 @@ CREATE TABLE IF NOT EXISTS runs (
     policy TEXT,
     seed INTEGER,
     kpis TEXT NOT NULL,
+    special TEXT,
     finished_at TEXT
 )
 """
-COLUMNS = ("key", "label", "point", "policy", "seed", "kpis", "finished_at")
+COLUMNS = ("key", "label", "point", "policy", "seed", "kpis", "special", "finished_at")
 NON_FINITE = {"Infinity": math.inf, "-Infinity": -math.inf, "NaN": math.nan}
+SYNCHRONOUS = "FULL"  # each commit on disk (fsynced) before it returns
 
 Row = dict[str, Any]  # KPI name -> value (a float, or a text a KPI carries)
 
@@ -71,9 +79,9 @@ Row = dict[str, Any]  # KPI name -> value (a float, or a text a KPI carries)
 class RunStore:
     """The runs stored in ``folder`` (``DIR/evals``) by key; :meth:`add` commits one."""
 
-    def __init__(self, folder: Path) -> None:
+    def __init__(self, folder: Path, name: str = STORE_FILE) -> None:
         self.folder = Path(folder)
-        self.path = self.folder / STORE_FILE
+        self.path = self.folder / name
         self.folder.mkdir(parents=True, exist_ok=True)
         for tmp in self.folder.glob(".*.tmp"):  # a point's file whose write was killed mid-way
             tmp.unlink(missing_ok=True)
@@ -95,7 +103,7 @@ class RunStore:
                     "another folder"
                 )
             self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("PRAGMA synchronous=FULL")  # each commit on disk before it returns
+            self._db.execute(f"PRAGMA synchronous={SYNCHRONOUS}")
             with self._db:
                 self._db.execute(SCHEMA)
                 self._db.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
@@ -115,8 +123,8 @@ class RunStore:
         rows = list(read_legacy(legacy))
         with _refusing_damage(self.path), self._db:
             self._db.executemany(
-                "INSERT OR IGNORE INTO runs (key, kpis) VALUES (?, ?)",
-                [(key, _dumps(row)) for key, row in rows],
+                "INSERT OR IGNORE INTO runs (key, kpis, special) VALUES (?, ?, ?)",
+                [(key, *_dumps(row)) for key, row in rows],
             )
         legacy.replace(legacy.with_name(LEGACY_FILE + MIGRATED_SUFFIX))
         log.info("%s: migrated %d runs into %s", legacy, len(rows), self.path)
@@ -124,10 +132,12 @@ class RunStore:
     def get(self, key: str) -> Row | None:
         """The stored run's KPIs; None when absent (or its row is damaged)."""
         with _refusing_damage(self.path):
-            found = self._db.execute("SELECT kpis FROM runs WHERE key = ?", (key,)).fetchone()
+            found = self._db.execute(
+                "SELECT kpis, special FROM runs WHERE key = ?", (key,)
+            ).fetchone()
         if found is None:
             return None
-        row = _loads(found[0])
+        row = _loads(*found)
         if row is None:
             log.warning("%s: the run %s is damaged; running it again", self.path, key)
         return row
@@ -143,20 +153,36 @@ class RunStore:
         seed: int | None = None,
     ) -> None:
         """Store one finished run, committed before this returns."""
-        values = (
-            key,
-            label,
-            None if point is None else json.dumps(dict(point), default=str, sort_keys=True),
-            policy,
-            seed,
-            _dumps(row),
-            datetime.now(UTC).isoformat(timespec="seconds"),
-        )
-        with _refusing_damage(self.path), self._db:
-            self._db.execute(
-                f"INSERT OR REPLACE INTO runs ({', '.join(COLUMNS)}) VALUES (?, ?, ?, ?, ?, ?, ?)",
-                values,
+        about = {"label": label, "point": point, "policy": policy, "seed": seed}
+        self.add_many([(key, row, about)])
+
+    def add_many(self, runs: Sequence[tuple[str, Mapping[str, Any], Mapping[str, Any]]]) -> None:
+        """Store (key, KPIs, {label, point, policy, seed}) of each run in one transaction."""
+        now = datetime.now(UTC).isoformat(timespec="seconds")
+        values = [
+            (
+                key,
+                about.get("label"),
+                None if about.get("point") is None else _point(about["point"]),
+                about.get("policy"),
+                _integer(about.get("seed")),
+                *_dumps(row),
+                now,
             )
+            for key, row, about in runs
+        ]
+        marks = ", ".join("?" * len(COLUMNS))
+        with _refusing_damage(self.path), self._db:
+            self._db.executemany(
+                f"INSERT OR REPLACE INTO runs ({', '.join(COLUMNS)}) VALUES ({marks})", values
+            )
+
+    def items(self) -> Iterator[tuple[str, Row | None]]:
+        """(key, KPIs) of every stored run in the order stored (None: a damaged row)."""
+        with _refusing_damage(self.path):
+            found = self._db.execute("SELECT key, kpis, special FROM runs ORDER BY rowid")
+            for key, kpis, special in found.fetchall():
+                yield str(key), _loads(kpis, special)
 
     def __len__(self) -> int:
         with _refusing_damage(self.path):
@@ -208,36 +234,49 @@ class _refusing_damage:
             ) from None
 
 
-def _encode(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None if math.isnan(value) else ("Infinity" if value > 0 else "-Infinity")
-    return value
+def _integer(value: Any) -> int | None:
+    """A seed as SQLite's INTEGER holds it (64 bits); None when it does not fit."""
+    if isinstance(value, int) and not isinstance(value, bool) and -(2**63) <= value < 2**63:
+        return value
+    return None
 
 
-def _dumps(row: Mapping[str, Any]) -> str:
-    """Strict JSON (SQLite's json functions read it): NaN as null, infinities as text."""
-    return json.dumps({str(k): _encode(v) for k, v in row.items()}, allow_nan=False)
+def _point(values: Mapping[str, Any]) -> str:
+    return json.dumps({str(k): _finite(v) for k, v in values.items()}, default=str, sort_keys=True)
 
 
-def _decode(value: Any) -> Any:
-    if value is None:
-        return math.nan
-    if isinstance(value, str):
-        return NON_FINITE.get(value, value)
-    return value
+def _finite(value: Any) -> Any:
+    return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
-def _loads(text: Any) -> Row | None:
-    """A stored ``kpis`` object, null read back as NaN; None when it is not one."""
+def _dumps(row: Mapping[str, Any]) -> tuple[str, str | None]:
+    """``kpis`` and ``special`` of a row: strict JSON (SQLite's json functions read it),
+    each NaN or infinity null in the first and named in the second."""
+    special = {
+        str(k): "NaN" if math.isnan(v) else ("Infinity" if v > 0 else "-Infinity")
+        for k, v in row.items()
+        if isinstance(v, float) and not math.isfinite(v)
+    }
+    kpis = json.dumps({str(k): _finite(v) for k, v in row.items()}, allow_nan=False)
+    return kpis, json.dumps(special) if special else None
+
+
+def _loads(text: Any, special: Any = None) -> Row | None:
+    """A stored ``kpis`` object with its ``special`` values; None when it is not one."""
     try:
         data = json.loads(text)
+        extra = json.loads(special) if special is not None else {}
     except (TypeError, ValueError):
         return None
-    if not isinstance(data, dict):
+    if not isinstance(data, dict) or not isinstance(extra, dict):
         return None
-    if not all(v is None or isinstance(v, int | float | str) for v in data.values()):
+    if not all(isinstance(v, str) and v in NON_FINITE for v in extra.values()):
         return None
-    return {str(k): _decode(v) for k, v in data.items()}
+    for k, v in extra.items():
+        if data.get(k, 0) is not None:
+            return None  # a special value names a KPI that is not stored as null
+        data[k] = NON_FINITE[v]
+    return {str(k): v for k, v in data.items()}
 
 
 def read_legacy(path: Path) -> Iterator[tuple[str, dict[str, float]]]:
@@ -289,6 +328,21 @@ def stored_runs(folder: Path) -> int:
     return sum(1 for r in legacy.read_bytes().split(b"\n")[:-1] if _parse_legacy(r) is not None)
 
 
+def stored_keys(folder: Path) -> set[str]:
+    """The keys of the runs ``folder``'s store holds, read-only (for watching a study)."""
+    path = Path(folder) / STORE_FILE
+    if not path.is_file():
+        return set()
+    try:
+        db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, timeout=5.0)
+        try:
+            return {str(k) for (k,) in db.execute("SELECT key FROM runs")}
+        finally:
+            db.close()
+    except sqlite3.Error:
+        return set()  # being created, or damaged: the study itself says which
+
+
 def store_rows(folder: Path) -> list[dict[str, Any]]:
     """Every stored run of ``folder`` (``DIR/evals``) as a flat record: key, label, policy,
     seed, the point's values and the KPIs as columns (for ``export``); [] without a store."""
@@ -304,7 +358,7 @@ def store_rows(folder: Path) -> list[dict[str, Any]]:
     except sqlite3.Error as e:
         raise StudyError(f"{path}: cannot be read ({e}); move it away or rerun the study") from None
     out = []
-    for key, label, point, policy, seed, kpis, finished_at in found:
+    for key, label, point, policy, seed, kpis, special, finished_at in found:
         values = _loads(point) if point is not None else {}
         out.append(
             {
@@ -313,7 +367,7 @@ def store_rows(folder: Path) -> list[dict[str, Any]]:
                 **(values or {}),
                 "policy": policy,
                 "seed": seed,
-                **(_loads(kpis) or {}),
+                **(_loads(kpis, special) or {}),
                 "finished_at": finished_at,
             }
         )

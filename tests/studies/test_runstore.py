@@ -29,10 +29,12 @@ BASELINE = ROOT / "scenarios" / "paper_baseline.toml"
 def test_rows_read_back_exactly_and_by_plain_sql(tmp_path: Path) -> None:
     store = RunStore(tmp_path)
     row = {"gripping_rate": 91.25, "part_flow": math.nan, "wait": math.inf, "n": 3, "unit": "x"}
+    row |= {"text": "NaN", "none": None}  # a text and a None stay what they are
     store.add("k1", row, label="robots.count=3, SD", point={"robots.count": 3}, policy="SD", seed=7)
     back = store.get("k1")
+    row_rest = {"text": "NaN", "none": None}
     assert back is not None and math.isnan(back.pop("part_flow"))
-    assert back == {"gripping_rate": 91.25, "wait": math.inf, "n": 3, "unit": "x"}
+    assert back == {"gripping_rate": 91.25, "wait": math.inf, "n": 3, "unit": "x", **row_rest}
     assert store.get("absent") is None and len(store) == 1
     db = sqlite3.connect(tmp_path / STORE_FILE)  # a user's own SQL, while the store is open
     found = db.execute(
