@@ -334,3 +334,19 @@ def test_a_folder_with_only_a_torn_line_opens_as_empty(plan, tmp_path):
     j = opened(tmp_path, plan)
     assert j.rows(plan.specs()) == [None] * len(plan.specs())
     j.close()
+
+
+def test_a_store_from_a_newer_version_is_refused_in_one_line(plan, tmp_path):
+    import sqlite3
+
+    j = opened(tmp_path, plan)
+    j.record(fake_row(plan.specs()[0]))
+    j.close()
+    db = sqlite3.connect(tmp_path / "runs" / "runs.sqlite")
+    db.execute("PRAGMA user_version = 99")
+    db.close()
+    j = opened(tmp_path, plan)
+    with pytest.raises(StudyError, match=r"runs.sqlite: was written by a newer pnp-twin") as e:
+        j.rows(plan.specs())
+    assert "\n" not in str(e.value)
+    j.close()
