@@ -21,7 +21,7 @@ rule meets the target); ``policies`` names the rule of each crossing. With G fal
 flow for every rule these are the largest of each rule's own crossings.
 
 Every run is journalled in ``DIR/evals/`` the moment it finishes (as calibrate does: the
-per-run log of :mod:`pnp_twin.studies.runlog`, and each finished flow keyed by the
+runs store of :mod:`pnp_twin.studies.runstore`, and each finished flow keyed by the
 scenario, rules and seeds), so a killed search resumes without running a finished run again,
 and asking again with another target or confidence replays the flows it needs and
 simulates only new ones. ``DIR/capacity.json`` holds the

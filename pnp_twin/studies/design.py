@@ -32,7 +32,7 @@ reaches the target, *missed* when its upper bound is below it, *open* otherwise;
 open configuration could still be cheaper than the cheapest met one, the open ones that
 could are doubled in replications (up to ``most``), nowhere else. Every run is journalled
 per configuration, rule and seed under ``DIR/evals/`` the moment it finishes
-(:mod:`pnp_twin.studies.runlog`), so a killed design resumes without running a finished run
+(:mod:`pnp_twin.studies.runstore`), so a killed design resumes without running a finished run
 again, and asking again with another target, confidence or cost file simulates only the
 replications the new question needs.
 """
@@ -50,9 +50,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pnp_twin.studies.calibrate_eval import Evaluator
+from pnp_twin.studies.calibrate_eval import EVALS, Evaluator
+from pnp_twin.studies.design_answer import answered, question_key
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import StudyError, field_path_error
+from pnp_twin.studies.runstore import RunStore
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.twin.inputs import COSTS_BYTES, read_user_text
 from pnp_twin.twin.loader import ScenarioError, parse_value, with_overrides
@@ -196,15 +198,21 @@ class Config:
         self.g: list[float] = []  # the gripping rate per replication (the lost parts' cost)
         self.y: list[float] = []  # the figure the target is on (--kpi; G by default)
         self.flow: list[float] = []
+        self._bounds: dict[tuple[float, int], tuple[float, float, float]] = {}
 
     def label(self) -> str:
         return ", ".join(f"{k}={v}" for k, v in self.values.items()) + f", {self.policy}"
 
     def bounds(self, level: float) -> tuple[float, float, float]:
-        mean, low, high = t_interval(self.y, level)
-        low = max(low, 0.0) if math.isfinite(low) else 0.0
-        high = min(high, 100.0) if math.isfinite(high) else 100.0
-        return mean, low, high
+        # kept per count of runs (runs are only ever appended): a design asks every
+        # configuration's bounds at each point, thousands of times over
+        key = (level, len(self.y))
+        if key not in self._bounds:
+            mean, low, high = t_interval(self.y, level)
+            low = max(low, 0.0) if math.isfinite(low) else 0.0
+            high = min(high, 100.0) if math.isfinite(high) else 100.0
+            self._bounds[key] = mean, low, high
+        return self._bounds[key]
 
     def lost_cost(self, costs: Mapping[str, Any]) -> float:
         if not self.g:
@@ -334,27 +342,48 @@ def run_design(
     t0 = time.perf_counter()
     box = {p: r for p, r in grid.items() if isinstance(r, Continuous)}
     rules = list(policies or [scenario.policy])
+    asked = {"target": target, "confidence": confidence, "vary": grid, "first": first}
+    question = question_key(scenario, {**asked, "most": most, "trials": trials}, rules, costs, kpi)
+    done = answered(Path(out) / SUMMARY_FILE, question)  # the same question, answered before
+    if done is not None:
+        done |= {"simulated": 0, "replayed": done["runs"], "command": command}
+        done["wall_time"] = time.perf_counter() - t0
+        write_json(done, Path(out) / SUMMARY_FILE, keep_nan=True)
+        return done
     groups: list[tuple[dict[str, Any], str]] = [(v, rule) for v in combos for rule in rules]
     k = len(groups) * (trials if box else 1)
     level = 1.0 - (1.0 - confidence) / (k * looks(first, most))
     seeds = replication_seeds(scenario.seed, most)
+    store = RunStore(Path(out) / EVALS)  # one store for every batch: opened once
     simulated = replayed = 0
     configs: list[Config] = []
     # the KPIs each run keeps (part of its journal key: G's runs serve G and, on a line
     # without kinds, the value rate; another figure's are its own)
     kept = ["part_flow"] + ([] if kpi.column == "gripping_rate" else [kpi.column])
 
+    known: dict[tuple[Any, ...], Config] = {}  # (rule, values): found at once, not searched
+    met_cost: dict[Config, float] = {}  # each met configuration's total cost
+    changed: set[Config] = set()  # configurations with new runs since best_met() looked
+    unknown: set[Config] = set()  # met configurations whose total cost is NaN
+
     def config(values: dict[str, Any], rule: str) -> Config:
         values = {p: values[p] for p in grid}  # the order the fields were given in
-        for c in configs:
-            if c.policy == rule and c.values == values:
-                return c
+        try:
+            found = known.get((rule, *values.items()))
+        except TypeError:  # a value that is a list: searched
+            found = next((c for c in configs if c.policy == rule and c.values == values), None)
+        if found is not None:
+            return found
         try:
             sc = with_overrides(scenario, values) if values else scenario
         except ScenarioError as e:
             raise StudyError(f"--vary {values}: {e}") from None
         c = Config(values, rule, sc, capital(costs, sc))
         configs.append(c)
+        try:
+            known[(rule, *values.items())] = c
+        except TypeError:
+            pass
         return c
 
     def extend(todo: list[Config], n: int) -> None:
@@ -365,21 +394,33 @@ def run_design(
                 need = [c for c in mine if len(c.g) == rep]
                 if not need:
                     continue
-                ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine)
+                ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine, store)
                 lines = [for_replication(c.scenario, rep) for c in need]  # trace k in rep k
-                rows = ev.runs(lines, [c.label() for c in need])
+                rows = ev.runs(lines, [c.label() for c in need], [c.values for c in need])
                 simulated += ev.simulated
                 replayed += ev.replayed
                 for c, r in zip(need, rows, strict=True):
                     c.g.append(float(r[rule][0]["gripping_rate"]))
                     c.y.append(float(r[rule][0][kpi.column]))
                     c.flow.append(float(r[rule][0]["part_flow"]))
+                    changed.add(c)
         if progress is not None:
             progress(sum(len(c.g) for c in configs), k * most)
 
     def best_met() -> float:
-        met = [c for c in configs if _state(c, level, target) == "met"]
-        return min((c.capital + c.lost_cost(costs) for c in met), default=math.inf)
+        """The cheapest met configuration's total cost; only configurations with new runs
+        are looked at again (looking at all at every point made a design quadratic)."""
+        for c in changed:
+            met_cost.pop(c, None)
+            unknown.discard(c)
+            if _state(c, level, target) == "met":
+                met_cost[c] = c.capital + c.lost_cost(costs)
+                if math.isnan(met_cost[c]):
+                    unknown.add(c)
+        changed.clear()
+        if unknown:  # a NaN cost: the minimum then depends on the order, the configurations'
+            return min((met_cost[c] for c in configs if c in met_cost), default=math.inf)
+        return min(met_cost.values(), default=math.inf)
 
     def decide(c: Config) -> None:
         """Replications for one point, doubled while it is open and could be the cheapest."""
@@ -465,6 +506,7 @@ def run_design(
         "scenario_name": scenario.name,
         "command": command,
         "wall_time": time.perf_counter() - t0,
+        "question": question,  # design_answer: the same question asked again is read back
     }
     result["text"] = design_text(result, kpi)
     write_json(result, Path(out) / SUMMARY_FILE, keep_nan=True)
