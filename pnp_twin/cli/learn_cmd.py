@@ -31,6 +31,7 @@ from pnp_twin.learning.train_args import TrainArgs, field_help
 from pnp_twin.parallel import BACKENDS, pool_map_ordered, ray_map
 from pnp_twin.twin.folder_kind import write_kind
 from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.output import removed_if_refused
 from pnp_twin.twin.trace import check_replications
 
 TD_RULES = "FIFO,LIFO,SIRO,SD,LD,SPT"
@@ -181,6 +182,7 @@ _HANDWRITTEN = {
     "overrides",
 }
 _SCALED = {"learning_starts", "eval_every", "log_every", "checkpoint_every"}
+MAX_INT = 2**31 - 1
 
 
 def _field_options() -> list[tuple[str, Any, Any]]:
@@ -199,12 +201,14 @@ def _field_options() -> list[tuple[str, Any, Any]]:
             ]
         elif f.name in _SCALED:
             decl = Annotated[
-                int | None, typer.Option(flag, min=0, help=helps[f.name], show_default=False)
+                int | None,
+                typer.Option(flag, min=0, max=MAX_INT, help=helps[f.name], show_default=False),
             ]
         else:
             kind = type(default)
             low = (0 if f.name == "seed" else 1) if kind is int else None
-            decl = Annotated[kind, typer.Option(flag, help=helps[f.name], min=low)]
+            high = MAX_INT if kind is int else None  # a seed or a count a 64-bit int holds
+            decl = Annotated[kind, typer.Option(flag, help=helps[f.name], min=low, max=high)]
         out.append((f.name, decl, default))
     return out
 
@@ -230,12 +234,16 @@ def train_cmd(**kw: Any) -> None:
     if kw["backend"] not in BACKENDS:
         fail(f"--backend: '{kw['backend']}' is not allowed; allowed {', '.join(BACKENDS)}")
     args = _train_args(kw)
-    write_kind(Path(kw["out"]), "train")  # checked above; a folder of training runs now
+    from pnp_twin.learning.train import resolve_device
+
+    resolve_device(args.device)  # a bad device is refused before the folder is made
     runs = [replace(args, seed=s) for s in range(args.seed, args.seed + kw["seeds"])]
-    if len(runs) == 1:
-        folders = [_train_with_progress(runs[0])]
-    else:
-        folders = _train_seeds(runs, kw["workers"], kw["backend"], kw["address"])
+    with removed_if_refused(Path(kw["out"])):
+        write_kind(Path(kw["out"]), "train")  # checked above; a folder of training runs now
+        if len(runs) == 1:
+            folders = [_train_with_progress(runs[0])]
+        else:
+            folders = _train_seeds(runs, kw["workers"], kw["backend"], kw["address"])
     for f in sorted(folders):
         typer.echo(f)
 
