@@ -68,7 +68,8 @@ def _trace_names(sc: Scenario) -> list[str]:
 
 
 def _paths(value: object) -> list[Path]:
-    """The files a value names: a path, or a ``py:FILE.py:...`` policy spec's file."""
+    """The files a value names: a path, or the file or folder a policy spec reads
+    (``py:FILE.py:...``, ``hdqn:DIR``, ``sb3:FILE.zip[@RULES]``); a rule names none."""
     values = value if isinstance(value, list | tuple) else [value]
     out = []
     for v in values:
@@ -76,8 +77,10 @@ def _paths(value: object) -> list[Path]:
             out.append(v)
         elif isinstance(v, str) and v.startswith("py:") and ".py:" in v:
             out.append(Path(v[3:].split(".py:", 1)[0] + ".py"))
-        elif isinstance(v, str) and v:
-            out.append(Path(v))
+        elif isinstance(v, str) and v.startswith(("hdqn:", "sb3:")):
+            target = v.partition(":")[2].partition("@")[0].strip()
+            if target:
+                out.append(Path(target))
     return out
 
 
