@@ -8,11 +8,12 @@ backend, the worker count or the order in which runs finish. Results are handed 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from pnp_twin.parallel import BACKENDS, pool_map, ray_map
+from pnp_twin.parallel import BACKENDS, Pool, pool_map, ray_map, ray_session
 from pnp_twin.studies.execute import execute
 from pnp_twin.studies.plan import RunSpec, StudyError
 
@@ -42,3 +43,49 @@ def run_specs(
             on_row(execute(spec))
     else:
         pool_map(execute, specs, on_row, workers, preload=["pnp_twin.studies.execute"])
+
+
+class Executor:
+    """Where every batch of one study runs, opened once for the whole study: one local
+    process pool kept between batches (a design or capacity search asks for many small
+    batches, and a fresh pool per batch costs more than its runs), or one Ray session.
+
+    Use as a context manager; ``run`` is :func:`run_specs` on the open backend. Rows are
+    the same whatever the backend or worker count (seeds are fixed per run)."""
+
+    def __init__(self, backend: str = "local", workers: int = 1, address: str | None = None):
+        if backend not in BACKENDS:
+            raise StudyError(
+                f"--backend: '{backend}' is not allowed; allowed {', '.join(BACKENDS)}"
+            )
+        if workers < 1:
+            raise StudyError(f"--workers: {workers} is not allowed; give 1 or more")
+        self.backend = backend
+        self.workers = workers
+        self.address = address
+        self._stack = contextlib.ExitStack()
+        self._pool: Pool | None = None
+
+    def __enter__(self) -> Executor:
+        if self.backend == "ray":
+            self._stack.enter_context(ray_session(self.workers, self.address))
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stack.close()
+
+    def run(self, specs: Sequence[RunSpec], on_row: OnRow) -> None:
+        """Execute ``specs``, calling ``on_row`` with each finished run's row."""
+        if not specs:
+            return
+        if self.backend == "ray":
+            ray_map(execute, specs, on_row, self.workers, self.address, retries=2)
+        elif self.workers == 1 or len(specs) == 1:
+            for spec in specs:
+                on_row(execute(spec))
+        else:
+            if self._pool is None:  # started on the first batch that needs it, kept
+                self._pool = self._stack.enter_context(
+                    Pool(self.workers, preload=["pnp_twin.studies.execute"])
+                )
+            self._pool.map(execute, specs, on_row)

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from pnp_twin.parallel import pool_map
+from pnp_twin.studies.backends import Executor
 from pnp_twin.studies.execute import execute
 from pnp_twin.studies.plan import RunSpec, StudyError
 from pnp_twin.studies.runlog import RunLog
@@ -117,6 +118,7 @@ class Evaluator:
         kpis: Sequence[str],
         workers: int = 1,
         engine: str = "auto",
+        executor: Executor | None = None,
     ) -> None:
         self.folder = Path(folder) / EVALS
         self.folder.mkdir(parents=True, exist_ok=True)
@@ -126,6 +128,7 @@ class Evaluator:
         self.seeds = tuple(seeds)
         self.kpis = tuple(dict.fromkeys([BEST_BY, *kpis]))
         self.workers = workers
+        self.executor = executor  # one pool (or Ray session) for a whole study, if given
         self.engine = engine  # twin.run.simulate's engine (same results either way)
         self.engines_ran: set[str] = set()  # the engines that simulated this evaluator's runs
         self.simulated = 0  # points simulated by this evaluator (not replayed)
@@ -211,8 +214,10 @@ class Evaluator:
             self.engines_ran.add(str(row.get("engine", "simpy")))
 
         try:
+            if self.executor is not None:
+                self.executor.run(specs, keep)
             # a fresh pool costs a second or two to start: worth it only for a big batch
-            if self.workers > 1 and len(specs) >= POOL_MIN_RUNS * self.workers:
+            elif self.workers > 1 and len(specs) >= POOL_MIN_RUNS * self.workers:
                 pool_map(execute, specs, keep, self.workers, preload=["pnp_twin.studies.execute"])
             else:
                 for spec in specs:

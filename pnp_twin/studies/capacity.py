@@ -43,11 +43,12 @@ from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.calibrate_eval import Evaluator
-from pnp_twin.studies.design import choice_text, parse_vary
+from pnp_twin.studies.design_text import choice_text
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import StudyError
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.studies.sizing import selected_confidence
+from pnp_twin.studies.vary import parse_vary
 from pnp_twin.twin.loader import ScenarioError, with_overrides
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.scenario import Scenario
