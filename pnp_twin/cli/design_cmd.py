@@ -9,6 +9,7 @@ confidence or cost file reuses every journalled run (``DIR/evals/``).
 from __future__ import annotations
 
 import os
+import textwrap
 from pathlib import Path
 from typing import Annotated
 
@@ -26,9 +27,18 @@ from pnp_twin.cli.app import (
     app,
 )
 from pnp_twin.cli.console import note
+from pnp_twin.cli.decision_opts import (
+    AcrossOpt,
+    BaselineOpt,
+    RayAddressOpt,
+    RayBackendOpt,
+    WriteScenarioOpt,
+    executor,
+)
 from pnp_twin.cli.study_folder import check_policies, run_locked
 from pnp_twin.studies.calibrate_eval import EVALS
-from pnp_twin.studies.design import SUMMARY_FILE, check_design, run_design
+from pnp_twin.studies.deploy import check_scenario_out, scenario_file_text, write_scenario_file
+from pnp_twin.studies.design import SUMMARY_FILE, check_baseline, check_design, run_design
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
@@ -74,49 +84,84 @@ def design_cmd(
     no_report: NoReportOpt = False,
     json_out: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
+    across: AcrossOpt = None,
+    baseline: BaselineOpt = None,
+    write_scenario: WriteScenarioOpt = None,
+    backend: RayBackendOpt = "local",
+    address: RayAddressOpt = None,
 ) -> None:
     """The cheapest configuration meeting a target gripping rate with a confidence."""
-    sc = load_scenario(scenario, parse_sets(sets or []))
+    sets_map = parse_sets(sets or [])
+    sc = load_scenario(scenario, sets_map)
     figure = parse_kpi(kpi, sc)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; give a folder")
     if not vary and not policy:
         raise UserError("--vary: give at least one field to vary, e.g. --vary robots.count=3:8")
     check_design(
-        sc, target, vary or [], costs, confidence, replications, max_replications, trials
+        sc,
+        target,
+        vary or [],
+        costs,
+        confidence,
+        replications,
+        max_replications,
+        trials,
+        across or [],
     )  # every mistake is one line before the folder exists
     check_policies(policy or [sc.policy], sc.robots.count)
-    result = run_locked(
-        out,
-        {"scenario file": find_scenario(scenario), "costs": costs},
-        OURS,
-        lambda cmd: run_design(
-            sc,
+    inputs = {"scenario file": find_scenario(scenario), "costs": costs, "baseline": baseline}
+    today = check_baseline(baseline, costs, sc, across or [])
+    if write_scenario is not None:
+        check_scenario_out(write_scenario, inputs, "--write-scenario")
+    runner = executor(backend, workers or (os.cpu_count() or 1), address)
+    with runner:
+        result = run_locked(
             out,
-            target,
-            vary or [],
-            policy,
-            costs,
-            confidence,
-            replications,
-            max_replications,
-            workers or (os.cpu_count() or 1),
-            engine.value,
-            cmd,
-            trials=trials,
-            kpi=figure,
-        ),
-    )
+            inputs,
+            OURS,
+            lambda cmd: run_design(
+                sc,
+                out,
+                target,
+                vary or [],
+                policy,
+                costs,
+                confidence,
+                replications,
+                max_replications,
+                workers or (os.cpu_count() or 1),
+                engine.value,
+                cmd,
+                trials=trials,
+                kpi=figure,
+                across=across or [],
+                baseline=today,
+                executor=runner,
+            ),
+        )
+    if write_scenario is not None and result["choice"] is not None:
+        text = scenario_file_text(
+            result["scenario_chosen"],
+            result["choice"]["policy"],
+            result["seeds"],
+            result["command"],
+            textwrap.wrap(result["text"], 96),
+            sc.source_dir,
+        )
+        note(f"scenario: {write_scenario_file(write_scenario, text)}")
+    elif write_scenario is not None:
+        note(f"--write-scenario: nothing written to {write_scenario}: no configuration meets it")
     if not no_report:
         from pnp_twin.reports.design import build_design_report
 
         note(f"report: {build_design_report(out)}")
     if json_out:
-        keep = ("scenario", "rows")
+        keep = ("scenario", "scenario_chosen", "rows")
         typer.echo(dumps_json({k: v for k, v in result.items() if k not in keep}, indent=2))
         return
     typer.echo(result["text"])
     note(
         f"{result['runs']} runs of the {result['runs_fixed']} a fixed {max_replications} "
-        f"replications would take ({result['simulated']} simulated now)"
+        f"replications would take ({result['runs_simulated']} simulated now)"
     )

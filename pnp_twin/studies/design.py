@@ -65,7 +65,7 @@ from pnp_twin.studies.prices import (
 )
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.studies.vary import Continuous, parse_vary, round_value
-from pnp_twin.twin.loader import ScenarioError, with_overrides
+from pnp_twin.twin.loader import ScenarioError, load_scenario, with_overrides
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.trace import trace_files
@@ -174,6 +174,26 @@ def check_design(
                     )
             capital(costs, sc)  # a price for every robot and belt speed the search can reach
     return costs, grid, combos
+
+
+def check_baseline(
+    path: Path | None, costs_file: Path | None, scenario: Scenario, across: Sequence[str]
+) -> Scenario | None:
+    """Today's line (``--baseline FILE``), loaded and checked against the conditions before
+    anything is written; None without one."""
+    if path is None:
+        return None
+    if costs_file is None:
+        raise StudyError(
+            f"--baseline {path}: the saving is in lost parts; give --costs with lost_part_cost"
+        )
+    today = load_scenario(path)
+    for condition in conditions_of(scenario, parse_across(across, scenario)):
+        try:
+            with_overrides(today, condition) if condition else today
+        except ScenarioError as e:
+            raise StudyError(f"--baseline {path} at --across {condition}: {e}") from None
+    return today
 
 
 def run_design(
@@ -351,7 +371,6 @@ def run_design(
         base = Config({}, baseline.policy, cells(baseline), 0.0)
         extend([base], len(chosen.g))
         result["payback"] = payback(chosen, base, costs, confidence, level)
-        result["payback"]["name"] = baseline.name
         result["payback_runs"] = len(base.g) * len(conditions)
     result["wall_time"] = time.perf_counter() - t0
     result["text"] = design_text(result, kpi)

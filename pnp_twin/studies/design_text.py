@@ -106,7 +106,7 @@ def payback_text(p: Mapping[str, Any] | None) -> str:
     if not p:
         return ""
     today = (
-        f" Against today's line ({p['name']}: G {p['gripping_rate']:.1f} % "
+        f" Against today's line (G {p['gripping_rate']:.1f} % "
         f"[{p['ci_low']:.1f}, {p['ci_high']:.1f}], {p['replications']} runs)"
     )
     year = (
