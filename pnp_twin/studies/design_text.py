@@ -97,7 +97,8 @@ def alternative_text(d: Mapping[str, Any]) -> str:
         )
     if capital == 0:
         return f"; {name} also meets it on the same hardware for {_money(extra)} more in lost parts"
-    return f"; {name} also meets it for {_money(extra)} more [{_money(low)}, {_money(high)}]"
+    span = f" [{_money(low)}, {_money(high)}]" if low != high else ""
+    return f"; {name} also meets it for {_money(extra)} more{span}"
 
 
 def payback_text(p: Mapping[str, Any] | None) -> str:
