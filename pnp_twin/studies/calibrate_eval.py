@@ -136,6 +136,7 @@ class Evaluator:
         self.log = RunLog(self.folder)  # every run, written as it finishes
         self.runs_simulated = 0  # runs simulated now; the others of a simulated point came
         self.runs_replayed = 0  # from the per-run log (a point cut short by a kill)
+        self.runs_from_points = 0  # the runs of whole points read back from the journal
 
     def predict(
         self, scenarios: Sequence[Scenario], labels: Sequence[str]
@@ -156,6 +157,7 @@ class Evaluator:
             if stored is not None:
                 runs[i] = stored
                 self.replayed += 1
+                self.runs_from_points += sum(len(rows) for rows in stored.values())
             else:
                 todo.append(i)
         if todo:

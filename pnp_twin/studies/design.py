@@ -271,6 +271,7 @@ def run_design(
                 rows = ev.runs([cell.scenario for cell in need], names)
                 for key in counts:
                     counts[key] += getattr(ev, key)
+                counts["runs_replayed"] += ev.runs_from_points
                 for cell, r in zip(need, rows, strict=True):
                     cell.g.append(float(r[rule][0]["gripping_rate"]))
                     cell.y.append(float(r[rule][0][kpi.column]))
