@@ -78,6 +78,15 @@ def fmt_value(value: Any) -> str:
     return str(value)
 
 
+def fmt_bound(x: float, target: float, digits: int = 1) -> str:
+    """A bound of an interval with as many decimals as it takes not to round across the
+    target: 94.99 against 95 is '94.99', not '95.0' (which would read as meeting it)."""
+    d = digits
+    while d < 4 and (round(x, d) >= target) != (x >= target):
+        d += 1
+    return f"{x:.{d}f}"
+
+
 def param_value(path: str, value: Any, lower: bool = False) -> str:
     """'Arm speed 4 m/s' ('arm speed 4 m/s' inside a sentence); an MTBF of 0 is 'no
     breakdowns'."""

@@ -46,12 +46,26 @@ def _num(v: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _order(text: str) -> tuple[int, float, str]:
+    """Numbers first, by value; then words."""
+    x = _num(text)
+    return (0, x, "") if x is not None else (1, 0.0, text)
+
+
+def _combo_label(keys: Sequence[str], key: str) -> str:
+    cells = key.split("|")
+    return " · ".join(
+        c if k == "policy" else f"{param_label(k, unit=False)} {c}"
+        for k, c in zip(keys, cells, strict=True)
+    )
+
+
 def whatif_html(
     paths: Sequence[str],
     rows: Sequence[dict[str, Any]],
     level: str = "95 %",
     start: dict[str, Any] | None = None,
-    panel_id: str = "whatif",
+    panel_id: str = "whatif-panel",
     no_cost: str = "",
 ) -> str:
     """The panel: ``rows`` are {values: {path: value}, policy, mean, low, high, cost?,
@@ -79,8 +93,24 @@ def whatif_html(
                 "why": r.get("why") or "",
             }
         )
+    for k in keys:  # each drop-down in axis order (numbers as numbers)
+        options[k].sort(key=_order)
     first = start or {**rows[0]["values"], "policy": rows[0]["policy"]}
     controls = []
+    if math.prod(len(v) for v in options.values()) > len(data):
+        # sparse (a continuous range: few of the crossed values were run together): one
+        # drop-down of the combinations that were run, sorted, instead of offering the rest
+        names = sorted(
+            ((d["key"], _combo_label(keys, d["key"])) for d in data),
+            key=lambda kv: [_order(c) for c in kv[0].split("|")],
+        )
+        chosen = "|".join([fmt_value(first.get(k)) for k in paths] + [str(first.get("policy"))])
+        opts = "".join(
+            f'<option value="{esc(key)}"{" selected" if key == chosen else ""}>{esc(name)}</option>'
+            for key, name in names
+        )
+        controls.append(f"<label>Configuration run <select>{opts}</select></label>")
+        keys = []
     for k in keys:
         label = "Rule" if k == "policy" else param_label(k)
         chosen = fmt_value(first.get(k)) if k != "policy" else str(first.get("policy"))

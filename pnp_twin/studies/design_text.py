@@ -7,7 +7,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from pnp_twin.reports.text import param_value
+from pnp_twin.reports.text import fmt_bound, param_value
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.twin.scenario import Scenario
 
@@ -141,7 +141,8 @@ def design_text(d: dict[str, Any], kpi: KpiChoice = GRIPPING) -> str:
     worst = " (the worst condition's)" if at else ""
     out = (
         f"{choice_text(d['choice'], d.get('notes') or ())}: {kpi.short} = "
-        f"{d['gripping_rate']:.1f} % [{d['ci_low']:.1f}, {d['ci_high']:.1f}]{worst} meets "
+        f"{d['gripping_rate']:.1f} % [{fmt_bound(d['ci_low'], d['target'])}, "
+        f"{fmt_bound(d['ci_high'], d['target'])}]{worst} meets "
         f"{kpi.short} ≥ {d['target']:g} %{at} with {conf} confidence after selecting among "
         f"{among}; {cost_text(d)}"
     )

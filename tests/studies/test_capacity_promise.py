@@ -51,6 +51,11 @@ def test_a_start_flow_that_brings_no_part_still_finds_the_capacity(tmp_path: Pat
     assert low["ci_low"] <= low["max_rate"] <= low["ci_high"]  # never outside its interval
     assert abs(low["max_rate"] - usual["max_rate"]) <= 0.1 * usual["max_rate"]
     assert low["search"]["max_rate"] == "found"
+    from pnp_twin.reports.capacity import build_capacity_report
+
+    page = build_capacity_report(tmp_path / "usual").read_text()
+    assert "surely" not in page and "above it: missed with 95 % confidence" in page
+    assert "upper crosses" in page and "mean crosses" in page and "promise" in page
 
 
 def test_replications_auto_doubles_until_the_promise_is_close_to_the_mean(
