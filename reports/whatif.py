@@ -101,7 +101,7 @@ def whatif_html(
         # sparse (a continuous range: few of the crossed values were run together): one
         # drop-down of the combinations that were run, sorted, instead of offering the rest
         names = sorted(
-            ((d["key"], _combo_label(keys, d["key"])) for d in data),
+            ((str(d["key"]), _combo_label(keys, str(d["key"]))) for d in data),
             key=lambda kv: [_order(c) for c in kv[0].split("|")],
         )
         chosen = "|".join([fmt_value(first.get(k)) for k in paths] + [str(first.get("policy"))])
