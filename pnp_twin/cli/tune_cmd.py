@@ -7,6 +7,9 @@ prints the answer, the line to type into the controller, or the JSON with ``--js
 
 from __future__ import annotations
 
+import shlex
+import sys
+import textwrap
 from pathlib import Path
 from typing import Annotated
 
@@ -23,7 +26,9 @@ from pnp_twin.cli.app import (
     app,
 )
 from pnp_twin.cli.console import note
+from pnp_twin.cli.decision_opts import WriteScenarioOpt
 from pnp_twin.cli.study_folder import run_locked, with_duration
+from pnp_twin.studies.deploy import check_scenario_out, scenario_file_text, write_scenario_file
 from pnp_twin.studies.tune import Tuned, TuneSettings, check_tune
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json, removed_if_refused
@@ -77,6 +82,7 @@ def tune(
     workers: ProcessesOpt = 1,
     engine: EngineOpt = Engine.fast,
     as_json: JsonOpt = False,
+    write_scenario: WriteScenarioOpt = None,
 ) -> None:
     """The settings of a controller's balancing mode (share or lane) that maximise G, or meet
     a target with the fewest parts passed on: the line to type into the controller."""
@@ -94,6 +100,9 @@ def tune(
         workers=workers,
     )
     check_tune(sc, settings)  # everything refusable before the folder is made
+    inputs = {"scenario file": find_scenario(scenario)}
+    if write_scenario is not None:
+        check_scenario_out(write_scenario, inputs, "--write-scenario")
     from pnp_twin.studies.tune import run_tune
 
     def work(_: str) -> Tuned:
@@ -102,7 +111,17 @@ def tune(
         return result
 
     with removed_if_refused(out):
-        result = run_locked(out, {"scenario file": find_scenario(scenario)}, OURS, work)
+        result = run_locked(out, inputs, OURS, work)
+    if write_scenario is not None:
+        text = scenario_file_text(
+            sc.model_dump(mode="json"),
+            result.best.name,
+            settings.seed_list,
+            shlex.join(["pnp-twin", *sys.argv[1:]]),
+            textwrap.wrap(result.answer(), 96),
+            sc.source_dir,
+        )
+        note(f"scenario: {write_scenario_file(write_scenario, text)}")
     if as_json:
         typer.echo(dumps_json(result.to_json(), indent=2))
         return

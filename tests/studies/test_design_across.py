@@ -80,3 +80,25 @@ def test_a_condition_given_to_vary_is_refused_with_the_hint(tmp_path: Path) -> N
     bad = CliRunner().invoke(app, [*args, "--across", "feeder.rat=6", "--out", str(tmp_path / "o")])
     assert bad.exit_code == 2 and "not a scenario field" in bad.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_size_across_meets_every_condition_and_writes_the_chosen_line(tmp_path: Path) -> None:
+    chosen = tmp_path / "sized.toml"
+    args = ["size", "paper_baseline", "--target", "90", "--set", "duration=60"]
+    args += ["--set", "warmup=10", "--set", 'sweep.grid={"robots.count": [3, 4, 5, 6]}']
+    args += ["--across", "feeder.rate=5,8", "-r", "3", "--workers", "1", "--no-report"]
+    result = CliRunner().invoke(
+        app, [*args, "--out", str(tmp_path / "s"), "--write-scenario", str(chosen)]
+    )
+    assert result.exit_code == 0, result.output
+    import json
+
+    sizing = json.loads((tmp_path / "s" / "sizing.json").read_text())
+    assert [c["feeder.rate"] for c in sizing["by_condition"]] == [5.0, 8.0]
+    assert sizing["answer"] == max(c["answer"] for c in sizing["by_condition"])
+    line = load_scenario(chosen)
+    assert line.robots.count == sizing["answer"] and line.policy == sizing["rule"]
+    twice = CliRunner().invoke(
+        app, [*args, "--across", "robots.count=3,4", "--out", str(tmp_path / "t")]
+    )
+    assert twice.exit_code == 2 and "already in sweep.grid" in twice.stderr
