@@ -168,6 +168,32 @@ def pool_map_ordered(
     return results
 
 
+def _call_indexed(job: tuple[int, Callable[[Any], Any], Any]) -> tuple[int, Any]:
+    """A Ray task of :func:`ray_map_ordered` (Ray takes functions, not partials)."""
+    i, fn, item = job
+    return i, fn(item)
+
+
+def ray_map_ordered(
+    fn: Callable[[Any], Any],
+    items: Sequence[Any],
+    workers: int,
+    address: str | None,
+    on_result: Callable[[Any], None] | None = None,
+) -> list[Any]:
+    """:func:`ray_map` with the results returned in the order of ``items``."""
+    results: list[Any] = [None] * len(items)
+
+    def keep(pair: tuple[int, Any]) -> None:
+        results[pair[0]] = pair[1]
+        if on_result is not None:
+            on_result(pair[1])
+
+    jobs = [(i, fn, item) for i, item in enumerate(items)]
+    ray_map(_call_indexed, jobs, keep, workers, address)
+    return results
+
+
 def import_ray() -> Any:
     """The ``ray`` module, or a one-line error naming the extra to install."""
     try:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import shlex
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Annotated
 
@@ -31,7 +32,9 @@ from pnp_twin.cli.app import (
     app,
 )
 from pnp_twin.cli.console import note, stdout_console
+from pnp_twin.cli.decision_opts import RayAddressOpt, RayBackendOpt, executor
 from pnp_twin.cli.study_folder import with_duration
+from pnp_twin.parallel import ray_session
 from pnp_twin.studies.headroom import BOUND_NOTE, Headroom, HeadroomSettings, check_policies
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
@@ -83,6 +86,8 @@ def headroom(
     engine: EngineOpt = Engine.fast,
     as_json: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
+    backend: RayBackendOpt = "local",
+    address: RayAddressOpt = None,
 ) -> None:
     """How much could smarter coordination gain? Best rule, best mix, given policies, the
     lookahead controller and its clairvoyant bound, paired by seed."""
@@ -98,7 +103,10 @@ def headroom(
         engine=engine.value,
         workers=workers,
         kpi=figure,
+        backend=backend,
+        address=address,
     )
+    executor(backend, workers, address)  # a bad backend or address: one line, nothing made
     check_policies(sc, settings)  # a bad name fails before the folder is made
     check_out_folder(out, {"scenario file": find_scenario(scenario)}, OURS)
     from pnp_twin.studies.headroom import run_headroom
@@ -108,7 +116,8 @@ def headroom(
         lock = StudyLock(out)
         lock.acquire(shlex.join(["pnp-twin", *sys.argv[1:]]))
         try:
-            result = run_headroom(sc, settings, _progress)
+            with ray_session(workers, address) if backend == "ray" else nullcontext():
+                result = run_headroom(sc, settings, _progress)
             write_headroom(result, out)
         finally:
             lock.release()

@@ -63,6 +63,10 @@ class HeadroomSettings:
     tuning_seeds: int = 3
     engine: str = "fast"
     workers: int = 1
+    backend: str = "local"
+    """Where the runs execute: ``local`` (processes, for the costly policies) or ``ray``."""
+    address: str | None = None
+    """The Ray cluster (``--address``; default RAY_ADDRESS, else a local Ray)."""
     confidence: float = 0.95
     kpi: KpiChoice = GRIPPING
     """The figure compared (``--kpi``): G, the value rate or one kind's G; the entries'
@@ -208,7 +212,7 @@ def _rates(
 ) -> tuple[list[float], float | None, float]:
     """The ``settings.kpi`` figure per seed (in ``settings.workers`` processes), mean CPU per
     decision and mean measured part flow (and, into ``figure``, the figure's mean flow)."""
-    from pnp_twin.parallel import pool_map_ordered
+    from pnp_twin.parallel import pool_map_ordered, ray_map_ordered
 
     jobs = [(scenario, spec, s, settings.engine, settings.kpi) for s in seeds]
     done = [0]
@@ -219,7 +223,9 @@ def _rates(
             progress(spec, done[0], len(jobs))
 
     costly = ":" in spec or spec.strip().lower() == "lookahead"  # rules take milliseconds
-    if costly and settings.workers > 1 and len(jobs) > 1:
+    if settings.backend == "ray":  # every run a Ray task (same seeds: the same numbers)
+        out = ray_map_ordered(_one, jobs, settings.workers, settings.address, on_result=tick)
+    elif costly and settings.workers > 1 and len(jobs) > 1:
         out = pool_map_ordered(_one, jobs, settings.workers, on_result=tick)
     else:
         out = []
