@@ -146,4 +146,11 @@ def design_text(d: dict[str, Any], kpi: KpiChoice = GRIPPING) -> str:
         f"{kpi.short} ≥ {d['target']:g} %{at} with {conf} confidence after selecting among "
         f"{among}; {cost_text(d)}"
     )
-    return out + alternative_text(d) + "." + payback_text(d.get("payback"))
+    shifts = ""
+    if "feeder.trace" in (d.get("across") or {}):
+        shifts = (
+            f" Each of the {len(d['across']['feeder.trace'])} traces is replayed as recorded: "
+            "its interval covers only the runs' own randomness (none for a rule that draws no "
+            "random numbers), so the answer is about these shifts, not shifts unlike them."
+        )
+    return out + alternative_text(d) + "." + shifts + payback_text(d.get("payback"))

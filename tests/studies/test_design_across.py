@@ -102,3 +102,22 @@ def test_size_across_meets_every_condition_and_writes_the_chosen_line(tmp_path: 
         app, [*args, "--across", "robots.count=3,4", "--out", str(tmp_path / "t")]
     )
     assert twice.exit_code == 2 and "already in sweep.grid" in twice.stderr
+
+
+def test_across_a_folder_of_shift_traces_runs_each_and_says_what_the_interval_covers(
+    tmp_path: Path,
+) -> None:
+    import pandas as pd
+
+    trace = pd.read_csv(ROOT / "scenarios" / "traces" / "sample_line.csv")
+    (tmp_path / "shifts").mkdir()
+    trace.to_csv(tmp_path / "shifts" / "a.csv", index=False)
+    trace.iloc[::2].to_csv(tmp_path / "shifts" / "b.csv", index=False)  # a quieter shift
+    sc = load_scenario(ROOT / "scenarios" / "trace_replay.yaml", {"belt.length": 4.0})
+    d = run_design(
+        sc, tmp_path / "d", 90.0, ["robots.count=2:4"], ["SD"], None, 0.95, 3, 6,
+        across=[f"feeder.trace={tmp_path / 'shifts'}"],
+    )  # fmt: skip
+    assert [Path(c["feeder.trace"]).name for c in d["conditions"]] == ["a.csv", "b.csv"]
+    assert "replayed as recorded" in d["text"]
+    assert d["choice"] is not None
