@@ -37,6 +37,20 @@ def load_capacity(folder: Path | str) -> dict[str, Any]:
     return read_json(path)
 
 
+def auto_text(c: dict[str, Any]) -> str:
+    """' The replications were chosen by -r auto: 5 → 10 → 20 until ...' (empty without)."""
+    a = c.get("auto")
+    if not a:
+        return ""
+    reached = a["reached"]
+    how = f"{100 * reached:.1f} %" if reached != float("inf") else "no promise"
+    return (
+        f" The replications were chosen by -r auto ({' → '.join(map(str, a['replications']))}),"
+        f" until the promise sat within {100 * a['gap']:g} % of the mean crossing (reached: "
+        f"{how})."
+    )
+
+
 def runs_text(c: dict[str, Any]) -> str:
     """'120 runs simulated, 40 replayed from evals/' (older folders counted flows)."""
     if "runs_simulated" in c:
@@ -182,7 +196,7 @@ def whatif_section(c: dict[str, Any], folder: Path | str | None = None) -> Secti
     start = {"feeder.rate": float(at["rate"]), "policy": at["policy"]}
     several = len(c.get("rules") or []) > 1
     each = f"{100 * level:.4g} %" + (" per rule (Bonferroni)" if several else "")
-    panel = whatif_html(["feeder.rate"], rows, each, start, panel_id="whatif")
+    panel = whatif_html(["feeder.rate"], rows, each, start, target=float(c["target"]))
     intro = "Choose a part flow the search evaluated and a rule: the gripping rate measured "
     intro += f"there, with its interval against the target of {fmt_pct(target)} (from the "
     intro += "stored runs; nothing is simulated)."
@@ -292,7 +306,7 @@ def build_capacity_page(c: dict[str, Any], folder: Path | str | None = None) -> 
             f"Flows are found by root finding (doubling or halving from the scenario's flow, "
             f"then bisection to {100 * float(c.get('tolerance') or 0.01):g} %), not a grid; "
             f"{c['evaluated']} flows evaluated with {c['replications']} replications each "
-            f"and common random numbers."
+            f"and common random numbers.{auto_text(c)}"
         )
         + "</p></div>"
     )

@@ -261,7 +261,7 @@ def build_design_page(d: dict[str, Any]) -> Page:
         for r in d["rows"]
     ]
     start = dict(choice) if choice is not None else None
-    panel = whatif_html(paths, rows, f"{level} simultaneous", start)
+    panel = whatif_html(paths, rows, f"{level} simultaneous", start, target=float(d["target"]))
     sections = [
         Section("answer", "The answer", "", [answer, front_figure(d)]),
         Section(

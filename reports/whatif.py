@@ -20,13 +20,18 @@ SCRIPT = """
   var data = JSON.parse(root.querySelector('script[type="application/json"]').textContent);
   var selects = Array.prototype.slice.call(root.querySelectorAll('select'));
   var out = root.querySelector('output');
+  function bound(x) {  // never rounded across the target: 94.99 against 95 is not '95.0'
+    var d = 1, t = data.target;
+    while (t !== null && d < 4 && ((+x.toFixed(d) >= t) !== (x >= t))) { d += 1; }
+    return x.toFixed(d);
+  }
   function show() {
     var want = selects.map(function (s) { return s.value; }).join('|');
     var row = data.rows.find(function (r) { return r.key === want; });
     if (!row) { out.textContent = 'This combination was not run in the study.'; return; }
     var text = 'G = ' + row.mean.toFixed(1) + ' %%';
     text += row.low === null ? ' (' + (row.why || 'no interval') + ')' :
-      ' (' + data.level + ' CI ' + row.low.toFixed(1) + ' to ' + row.high.toFixed(1) + ' %%)';
+      ' (' + data.level + ' CI ' + bound(row.low) + ' to ' + bound(row.high) + ' %%)';
     if (row.cost !== null) { text += ' · total cost ' + Math.round(row.cost).toLocaleString('en'); }
     else if (data.nocost) { text += ' · ' + data.nocost; }
     if (row.note) { text += ' · ' + row.note; }
@@ -67,6 +72,7 @@ def whatif_html(
     start: dict[str, Any] | None = None,
     panel_id: str = "whatif-panel",
     no_cost: str = "",
+    target: float | None = None,
 ) -> str:
     """The panel: ``rows`` are {values: {path: value}, policy, mean, low, high, cost?,
     note?, why? (said instead of the interval when low is None)}; ``start`` the combination
@@ -119,7 +125,7 @@ def whatif_html(
             for o in options[k]
         )
         controls.append(f"<label>{esc(label)} <select>{opts}</select></label>")
-    payload = json.dumps({"rows": data, "level": level, "nocost": no_cost})
+    payload = json.dumps({"rows": data, "level": level, "nocost": no_cost, "target": target})
     payload = payload.replace("</", "<\\/")
     return (
         "<style>.whatif .controls{display:flex;flex-wrap:wrap;gap:10px 22px;margin:6px 0 10px}"

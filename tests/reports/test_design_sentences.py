@@ -131,3 +131,28 @@ def test_the_robot_chart_counts_only_the_robots_of_the_line_shown() -> None:
     )
     assert robot_count(rows.iloc[:1]) == 4
     assert robot_count(rows.iloc[1:]) == 6
+
+
+def test_the_what_if_never_rounds_a_bound_across_the_target_in_a_browser(tmp_path: Path) -> None:
+    import shutil
+
+    sync_api = pytest.importorskip("playwright.sync_api")
+    chromium = shutil.which("chromium")
+    if chromium is None:
+        pytest.skip("chromium is not installed")
+    rows = [
+        {"values": {"robots.count": 5}, "policy": "SD", "mean": 96.0, "low": 94.99,
+         "high": 97.0, "cost": 1.0},
+    ]  # fmt: skip
+    page_html = f"<html><body>{whatif_html(['robots.count'], rows, target=95.0)}</body></html>"
+    (tmp_path / "w.html").write_text(page_html, encoding="utf-8")
+    args = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium, args=args)
+        try:
+            page = browser.new_page()
+            page.goto((tmp_path / "w.html").as_uri(), wait_until="load")
+            text = page.locator("output").text_content() or ""
+        finally:
+            browser.close()
+    assert "CI 94.99 to 97.0 %" in text, text

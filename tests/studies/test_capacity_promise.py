@@ -68,6 +68,10 @@ def test_replications_auto_doubles_until_the_promise_is_close_to_the_mean(
     assert auto["reached"] == promise_gap(c)
     assert auto["reached"] <= 0.04 or c["replications"] == 20
     assert len(auto["replications"]) > 1  # 5 replications leave the promise further off
+    from pnp_twin.reports.capacity import build_capacity_report
+
+    page = build_capacity_report(tmp_path / "a").read_text()
+    assert "chosen by -r auto (" + " → ".join(map(str, auto["replications"])) in page
     # runs, not flows, are counted, and named so
     data = json.loads((tmp_path / "a" / "capacity.json").read_text())
     assert "simulated" not in data and data["runs_simulated"] >= c["flows_evaluated"] * 5
