@@ -184,6 +184,38 @@ def all_table(d: dict[str, Any]) -> str:
     return table_html(header, rows, left=len(paths) + 1, scroll=len(rows) > 14)
 
 
+def bill_table(d: dict[str, Any]) -> str:
+    """The answer's bill: each robot's arm speed and price (owned ones at 0), the belt and the
+    running cost; empty without a cost file or an answer."""
+    chosen, prices = d.get("scenario_chosen"), d.get("robot_prices")
+    if not d.get("cost_file") or not chosen or prices is None:
+        return ""
+    robots = chosen["robots"]
+    speed = {o["robot"]: o["arm_speed"] for o in robots.get("overrides") or [] if o.get("arm_speed")}
+    owned = set((d.get("costs") or {}).get("owned") or ())
+    rows = [
+        [
+            f"Robot {i}",
+            f"{float(speed.get(i, robots['arm_speed'])):g} m/s",
+            "owned" if i in owned else f"{p:,.0f}",
+        ]
+        for i, p in enumerate(prices, start=1)
+    ]
+    belt = d["capital_cost"] - sum(prices)
+    rows.append(["Belt", f"{float(chosen['belt']['speed']):g} m/s", f"{belt:,.0f}"])
+    rows.append(["Capital", "", f"{d['capital_cost']:,.0f}"])
+    hours = float(d["costs"]["hours"])
+    rows.append(
+        [
+            f"Running: lost parts over {hours:,.0f} h",
+            "",
+            f"{d['running_cost']:,.0f} [{d['total_cost_low'] - d['capital_cost']:,.0f}, "
+            f"{d['total_cost_high'] - d['capital_cost']:,.0f}]",
+        ]
+    )
+    return table_html(["Item", "Speed", "Price"], rows, left=2)
+
+
 def build_design_page(d: dict[str, Any]) -> Page:
     """The design report as a Page."""
     reached = d.get("replications_reached") or sorted(set(d["rounds"]))
@@ -278,6 +310,18 @@ def build_design_page(d: dict[str, Any]) -> Page:
         ),
         Section("all", "Every configuration", "", [all_table(d)]),
     ]
+    bill = bill_table(d)
+    if bill:
+        sections.insert(
+            1,
+            Section(
+                "bill",
+                "What it costs",
+                esc("The answer's robots, each priced at its own arm speed, the belt, and the "
+                    "running cost with its interval (lost parts are estimated from the runs)."),
+                [bill],
+            ),
+        )
     return Page(
         title=f"{d.get('scenario_name')}: design",
         eyebrow="pnp-twin report<span class='badge'>design</span>",

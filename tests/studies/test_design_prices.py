@@ -5,6 +5,7 @@ the choice written as a scenario file that ``run`` reproduces (issue #32)."""
 from __future__ import annotations
 
 import json
+import re
 import math
 import os
 from pathlib import Path
@@ -81,6 +82,11 @@ def test_each_robot_is_priced_at_its_own_speed(designed: tuple[Path, dict]) -> N
         lost = row["lost_parts_cost"]
         assert row["total_cost"] == pytest.approx(sum(own) + 5000 + lost)
     assert "robot 2 arm speed 1.5 m/s" in d["text"]
+    from pnp_twin.reports.design import bill_table
+
+    bill = re.sub(r"<[^>]+>", "|", bill_table(d))
+    assert re.search(r"Robot 2\|+1\.5 m/s\|+15,000", bill), bill
+    assert f"{d['capital_cost']:,.0f}" in bill
 
 
 def test_the_choice_equals_a_brute_force_over_every_configuration(
