@@ -191,7 +191,9 @@ def bill_table(d: dict[str, Any]) -> str:
     if not d.get("cost_file") or not chosen or prices is None:
         return ""
     robots = chosen["robots"]
-    speed = {o["robot"]: o["arm_speed"] for o in robots.get("overrides") or [] if o.get("arm_speed")}
+    speed = {
+        o["robot"]: o["arm_speed"] for o in robots.get("overrides") or [] if o.get("arm_speed")
+    }
     owned = set((d.get("costs") or {}).get("owned") or ())
     rows = [
         [
@@ -317,8 +319,10 @@ def build_design_page(d: dict[str, Any]) -> Page:
             Section(
                 "bill",
                 "What it costs",
-                esc("The answer's robots, each priced at its own arm speed, the belt, and the "
-                    "running cost with its interval (lost parts are estimated from the runs)."),
+                esc(
+                    "The answer's robots, each priced at its own arm speed, the belt, and the "
+                    "running cost with its interval (lost parts are estimated from the runs)."
+                ),
                 [bill],
             ),
         )

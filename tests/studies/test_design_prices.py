@@ -5,9 +5,9 @@ the choice written as a scenario file that ``run`` reproduces (issue #32)."""
 from __future__ import annotations
 
 import json
-import re
 import math
 import os
+import re
 from pathlib import Path
 
 import pytest
