@@ -137,8 +137,9 @@ def check_design(
             f"--replications {first}, --max-replications {most}: not allowed; give "
             f"2 <= replications <= max-replications <= {MAX_REPLICATIONS}"
         )
+    shifts = "feeder.trace" in parse_across(across, scenario)  # each shift's trace: a condition
     conditions = conditions_of(scenario, parse_across(across, scenario))
-    if scenario.feeder.arrival == "trace" and len(trace_files(scenario)) < 2 and not across:
+    if scenario.feeder.arrival == "trace" and len(trace_files(scenario)) < 2 and not shifts:
         raise StudyError(
             "design: one replayed trace is one sample, so no interval can say a configuration "
             "meets the target; give several traces (feeder.trace = a list or a folder) or add "
