@@ -456,4 +456,11 @@ def capacity_text(c: dict[str, Any], kpi: KpiChoice = GRIPPING) -> str:
         )
     else:
         out += f", and above {hi:.3g} parts/s the line misses it with {conf} confidence"
+    gap = promise_gap(c)
+    if "auto" not in c and c.get("replications") and GAP < gap < math.inf:
+        out += (
+            f" ({c['replications']} replications per flow leave the promise "
+            f"{100 * gap:.0f} % below the mean crossing; -r auto adds replications until it "
+            f"is within {100 * GAP:g} %)"
+        )
     return out + "."

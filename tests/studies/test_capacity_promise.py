@@ -27,6 +27,11 @@ def test_the_answer_is_a_promise_and_names_the_mean_and_upper_crossings() -> Non
     assert "the mean crosses at 19.6 parts/s" in text
     assert "above 21 parts/s the line misses it with 95 % confidence" in text
     assert "surely" not in text and "sustains 19.6 parts/s [16.4, 21]" not in text
+    assert "-r auto" not in text  # no replications said: nothing to suggest
+    c["replications"] = 5  # the promise 16 % below the mean crossing: say what narrows it
+    assert "5 replications per flow leave the promise 16 % below the mean crossing; -r auto" in (
+        capacity_text(c)
+    )
 
 
 def test_an_undetermined_upper_crossing_is_said_so() -> None:
