@@ -211,7 +211,7 @@ def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
     accept a TCP connection within ``timeout`` s; Ray itself would retry for minutes."""
     target = address.split("://", 1)[-1]
     host, sep, port = target.rpartition(":")
-    if not sep or not port.isdigit():
+    if not sep or not (port.isascii() and port.isdigit()):
         return  # "auto" and the like: Ray resolves those itself
     try:
         socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()

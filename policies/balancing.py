@@ -138,7 +138,7 @@ def _lane(where: str, text: str) -> tuple[float, float]:
 
 
 def _robot(where: str, text: str) -> int:
-    if not text.isdigit() or int(text) < 1:
+    if not (text.isascii() and text.isdigit()) or int(text) < 1:
         raise BalancingError(f"{where}: {excerpt(text)} is not a robot number ({_HELP['list']})")
     return int(text)
 

@@ -126,7 +126,7 @@ def parse(arg: str) -> LookaheadSettings:
 def _value(field: str, key: str, text: str) -> Any:
     bad = f"policy: lookahead: {key}={excerpt(text)} is not allowed; "
     if field == "futures":
-        if not text.isdigit() or not 1 <= int(text) <= MAX_FUTURES:
+        if not (text.isascii() and text.isdigit()) or not 1 <= int(text) <= MAX_FUTURES:
             raise LookaheadError(bad + f"K is a whole number of futures, 1 to {MAX_FUTURES}")
         return int(text)
     if field == "horizon":

@@ -8,7 +8,7 @@ from collections.abc import Callable, Sequence
 from pnp_twin.policies.base import RuleMix
 from pnp_twin.policies.rules import NAMED_RULES as RULES
 from pnp_twin.twin.decision import Policy
-from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.errors import UserError, excerpt
 
 Factory = Callable[[str], Policy]
 
@@ -37,7 +37,7 @@ def rule_names(names: Sequence[str]) -> tuple[str, ...]:
         raise ValueError(f"empty; give at least one of {', '.join(RULES)}")
     for r in out:
         if r not in RULES:
-            raise ValueError(f"'{r}' is not a rule; allowed {', '.join(RULES)}")
+            raise ValueError(f"{excerpt(r, 40)} is not a rule; allowed {', '.join(RULES)}")
     return out
 
 
@@ -54,7 +54,7 @@ def make_policy(spec: str, n_robots: int | None = None) -> Policy:
     if sep or prefix.lower() == "lookahead":  # ``lookahead`` alone: its defaults
         entry = PREFIXED.get(prefix.lower())
         if entry is None:
-            raise PolicyError(f"policy: unknown kind '{prefix}'; allowed {allowed()}")
+            raise PolicyError(f"policy: unknown kind {excerpt(prefix, 40)}; allowed {allowed()}")
         return _load(prefix.lower(), entry)(arg)
     try:
         rules = list(rule_names(text.split(",")))

@@ -27,6 +27,7 @@ from pnp_twin.policies.rules import RULES
 from pnp_twin.twin.belt import Belt
 from pnp_twin.twin.camera import BeltCamera
 from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.inputs import MODEL_BYTES, check_user_file
 from pnp_twin.twin.scenario import Scenario
 
 ALGORITHMS = ("PPO", "DQN", "A2C")
@@ -40,8 +41,9 @@ def load_model(path: Path) -> Any:
         raise PolicyError(
             "policy: sb3: needs stable-baselines3; install it: pip install stable-baselines3"
         ) from None
-    if not path.is_file():
+    if not path.exists():
         raise PolicyError(f"policy: sb3: '{path}' is not a file; give a model saved by SB3")
+    check_user_file(path, "policy: sb3", MODEL_BYTES, PolicyError)
     errors = []
     for name in ALGORITHMS:
         try:

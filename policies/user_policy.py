@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import hashlib
 import importlib
-import importlib.util
 import sys
 from pathlib import Path
 from types import ModuleType
 
+from pnp_twin.policies.user_guard import GuardedPolicy
 from pnp_twin.twin.decision import Policy
-from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.errors import UserError, clip
+from pnp_twin.twin.inputs import POLICY_BYTES, read_user_text
 
 FORMAT = "py:FILE.py:FACTORY[:ARG] or py:package.module:FACTORY[:ARG]"
 
@@ -41,7 +42,9 @@ def from_spec(arg: str) -> Policy:
         )
     try:
         policy = factory(factory_arg) if sep else factory()
-    except Exception as e:  # the user's code: one line naming it, not their traceback
+    except KeyboardInterrupt:
+        raise
+    except BaseException as e:  # noqa: BLE001 (SystemExit too: exit codes stay ours)  # the user's code: one line naming it, not their traceback
         raise UserPolicyError(
             f"policy: py:{arg}: {name}() raised {type(e).__name__}: {e}"
         ) from None
@@ -51,7 +54,7 @@ def from_spec(arg: str) -> Policy:
             f"policy: py:{arg}: {name}() returned {type(policy).__name__}, which has no "
             f"{' or '.join(missing)}(); a policy needs reset(robots, rng) and choose(decision)"
         )
-    return policy  # type: ignore[no-any-return]
+    return GuardedPolicy(policy, f"py:{arg}")  # type: ignore[return-value]
 
 
 def _module(target: str, arg: str) -> ModuleType:
@@ -67,20 +70,25 @@ def _module(target: str, arg: str) -> ModuleType:
 
 
 def _file_module(path: Path, arg: str) -> ModuleType:
-    if not path.is_file():
+    """The module of a policy file, read through the input guard (a regular UTF-8 file of
+    at most :data:`POLICY_BYTES`) and run once per process."""
+    if not path.exists():
         raise UserPolicyError(f"policy: py:{arg}: '{path}' is not a file; give {FORMAT}")
+    label = f"policy: py:{arg}"
+    source = read_user_text(path, label, POLICY_BYTES, UserPolicyError)
     key = "pnp_twin_user_policy_" + hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:16]
     if key in sys.modules:
         return sys.modules[key]
-    spec = importlib.util.spec_from_file_location(key, path)
-    if spec is None or spec.loader is None:
-        raise UserPolicyError(f"policy: py:{arg}: '{path}' cannot be loaded as Python")
-    module = importlib.util.module_from_spec(spec)
+    module = ModuleType(key)
+    module.__file__ = str(path)
+    sys.modules[key] = module  # during its run too: dataclasses and pickling look it up
     try:
-        spec.loader.exec_module(module)
-    except Exception as e:
+        exec(compile(source, str(path), "exec"), module.__dict__)  # noqa: S102 (the user's own policy)
+    except BaseException as e:  # noqa: BLE001 (SystemExit too: exit codes stay ours)
+        del sys.modules[key]
+        if isinstance(e, KeyboardInterrupt):
+            raise
         raise UserPolicyError(
-            f"policy: py:{arg}: loading '{path}' raised {type(e).__name__}: {e}"
+            f"policy: py:{arg}: loading '{path}' raised {type(e).__name__}: {clip(str(e))}"
         ) from None
-    sys.modules[key] = module
     return module

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from pnp_twin.reports.by_kind import build_by_kind
 from pnp_twin.reports.html import render
 from pnp_twin.reports.layout import build_page
 from pnp_twin.reports.load import ReportError, Study, load_study
@@ -36,6 +37,9 @@ def build_report(
 ) -> Path:
     """Write the report of ``study_dir`` to ``out`` (default ``study_dir/report.html``)."""
     study_dir = Path(study_dir)
+    built = build_by_kind(study_dir, Path(out) if out is not None else None)
+    if built is not None:  # a design, capacity, calibration, headroom or tune folder
+        return built
     target = Path(out) if out is not None else study_dir / "report.html"
     page = render_report(study_dir, animation)
     if not target.parent.is_dir():

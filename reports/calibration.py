@@ -69,7 +69,7 @@ def field_unit(path: str) -> str:
     model: type[BaseModel] | None = Scenario
     info = None
     for key in path.split("."):
-        if key.isdigit():
+        if key.isascii() and key.isdigit():
             continue
         if model is None or key not in model.model_fields:
             return ""

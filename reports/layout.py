@@ -21,6 +21,8 @@ from pnp_twin.reports.answers import (
 from pnp_twin.reports.html import Page, Section, esc, table_html
 from pnp_twin.reports.load import Study
 from pnp_twin.reports.mix_ranking import mix_section
+from pnp_twin.reports.replay_data import replay_data
+from pnp_twin.reports.replay_page import replay_html
 from pnp_twin.reports.text import (
     at_point,
     fmt_pct,
@@ -524,6 +526,17 @@ def records_section(
     if not items:
         return None
     run = study.run
+    if len(study.parts):
+        data = replay_data(
+            study.parts,
+            study.spans,
+            scenario,
+            run.get("seed"),
+            animation.start,
+            animation.seconds,
+            f"{run.get('policy')}, seed {run.get('seed', '–')}",
+        )
+        items.insert(0, replay_html([data]))
     where = ""
     results = study.results
     if results is not None and "point" in results.columns and study.grid:

@@ -135,6 +135,7 @@ def check_study(
         raise BudgetError(
             f"duration: the study's longest run feeds {duration:g} s at {rate:g} parts/s, "
             f"about {est.parts:.2g} parts ({_bytes(est.memory_bytes)}); the limit is "
-            f"{MAX_PARTS:,} parts per run; shorten sweep.duration or lower feeder.rate, {FORCE}"
+            f"{MAX_PARTS:,} parts per run; shorten the duration (duration, sweep.duration or "
+            f"--duration) or lower feeder.rate, {FORCE}"
         )
     return runs

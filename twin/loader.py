@@ -2,10 +2,11 @@
 
 Every mistake is a :class:`ScenarioError` of one line naming the file or the field, an
 excerpt of the bad value (never the whole input) and what is allowed. Files are read as
-UTF-8 (at most :data:`MAX_BYTES`); YAML is read safely and without aliases (``*name``), so a
-"billion laughs" file cannot expand; an empty file is refused, so a field left out means
-"as in ``paper_baseline``" only when the user wrote something. A scenario that replays a
-trace has its trace checked when it is loaded (:func:`twin.trace.check_replay`).
+UTF-8 (at most :data:`~pnp_twin.twin.inputs.SCENARIO_BYTES`); YAML is read safely and
+without aliases (``*name``), so a "billion laughs" file cannot expand; an empty file is
+refused, so a field left out means "as in ``paper_baseline``" only when the user wrote
+something. A scenario that replays a trace has its trace checked when it is loaded
+(:func:`twin.trace.check_replay`).
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
-from pnp_twin.twin.errors import ScenarioError, check_regular, clip, excerpt, read_user_text
+from pnp_twin.twin.errors import ScenarioError, clip, excerpt
+from pnp_twin.twin.inputs import SCENARIO_BYTES, check_regular, read_user_text
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.trace import arrival_from_trace, check_replay
 
@@ -44,7 +46,6 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 SUFFIXES = (".toml", ".yaml", ".yml")
-MAX_BYTES = 1_000_000  # a scenario is a page of settings; anything larger is a mistake
 INTERNAL = {"source_dir": "set by the loader (the scenario file's folder), not by the user"}
 
 
@@ -261,7 +262,7 @@ def read_mapping(path: Path) -> dict[str, Any]:
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise ScenarioError(f"scenario: '{path}' has suffix '{suffix}'; allowed .toml, .yaml, .yml")
-    text = read_user_text(path, "scenario", MAX_BYTES, ScenarioError)
+    text = read_user_text(path, "scenario", SCENARIO_BYTES, ScenarioError)
     data = _parse(text, path, suffix)
     if not isinstance(data, dict | type(None)):
         raise ScenarioError(f"scenario: '{path}' must hold a mapping of sections, not a list")
@@ -331,7 +332,8 @@ def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> di
         for depth, key in enumerate(keys[:-1]):
             child = node.get(key)
             where = ".".join(keys[: depth + 1])
-            if keys[depth + 1].isdigit():  # one element of a list, e.g. robots.bin_offset.1
+            index = keys[depth + 1]
+            if index.isascii() and index.isdigit():  # one element of a list: robots.bin_offset.1
                 if child is None:
                     child = _default(keys[: depth + 1])
                 if isinstance(child, list | tuple):

@@ -25,7 +25,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import tomli_w
 
-from pnp_twin.twin.errors import UserError, clip, file_kind
+from pnp_twin.twin.errors import UserError, clip
+from pnp_twin.twin.inputs import file_kind
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -89,6 +90,26 @@ def check_not_inputs(
                 f"{option}: '{clip(str(output))}' is the {what} this command reads; writing "
                 "there would overwrite it; give another file"
             )
+        if path is not None and _inside(output, path):
+            raise OutputError(
+                f"{option}: '{clip(str(output))}' lies inside the {_folder(what)} "
+                f"'{clip(str(path))}' this command reads; writing there would change its "
+                "inputs; give a file elsewhere"
+            )
+
+
+def _folder(what: str) -> str:
+    """``what`` named as a folder once: "trace folder", "policy folder"."""
+    return what if "folder" in what else f"{what} folder"
+
+
+def _inside(output: str | Path, folder: str | Path) -> bool:
+    """Whether ``output`` lies inside the existing folder ``folder`` (links resolved)."""
+    f = Path(folder)
+    if not f.is_dir():
+        return False
+    root, out = f.resolve(), Path(output).resolve()
+    return root in out.parents
 
 
 def check_out_folder(
@@ -109,6 +130,23 @@ def check_out_folder(
     base = _existing_ancestor(p / "x")
     if not base.is_dir():
         raise OutputError(f"{option} {clip(str(p))}: cannot be created; '{base}' is a file")
+    root = p.resolve()
+    for what, path in inputs.items():
+        if path is None:
+            continue
+        q = Path(path).resolve()
+        if q.is_dir() and (q == root or q in root.parents):
+            raise OutputError(
+                f"{option} {clip(str(p))}: lies inside the {_folder(what)} '{clip(str(path))}' "
+                "this command reads; writing there would change its inputs; choose another "
+                "folder"
+            )
+        if q == root or root in q.parents:
+            raise OutputError(
+                f"{option} {clip(str(p))}: holds the {what} '{clip(str(path))}' this command "
+                "reads; the study writes into its folder, so keep inputs outside it or choose "
+                "another folder"
+            )
     if p.is_dir():
         try:
             entries = {e.name for e in os.scandir(p)}
@@ -126,17 +164,6 @@ def check_out_folder(
         raise OutputError(
             f"{option} {clip(str(p))}: cannot be created in '{base}': permission denied"
         )
-    root = p.resolve()
-    for what, path in inputs.items():
-        if path is None:
-            continue
-        q = Path(path).resolve()
-        if q == root or root in q.parents:
-            raise OutputError(
-                f"{option} {clip(str(p))}: holds the {what} '{clip(str(path))}' this command "
-                "reads; the study writes into its folder, so keep inputs outside it or choose "
-                "another folder"
-            )
     return p
 
 
@@ -155,7 +182,9 @@ def same_file(a: str | Path, b: str | Path) -> bool:
     return Path(a).resolve() == Path(b).resolve()
 
 
-LOCK_NAMES = frozenset({".study.lock", ".study.lock.json"})
+LOCK_NAMES = frozenset({".study.lock", ".study.lock.json", ".pnp-twin.json", "study.json"})
+"""What a command writes into a folder before its first result: a folder it created that
+holds only these (and empty files) when it is refused is removed again."""
 
 
 @contextmanager
@@ -168,10 +197,17 @@ def removed_if_refused(out: str | Path, only: frozenset[str] = LOCK_NAMES) -> It
         yield
     except BaseException:
         if not existed and folder.is_dir():
-            names = {p.name for p in folder.rglob("*") if not p.is_dir()}
-            if names <= only:
+            files = [p for p in folder.rglob("*") if not p.is_dir()]
+            if all(p.name in only or _empty(p) for p in files):
                 shutil.rmtree(folder, ignore_errors=True)
         raise
+
+
+def _empty(path: Path) -> bool:
+    try:
+        return path.stat().st_size == 0
+    except OSError:
+        return False
 
 
 @contextmanager

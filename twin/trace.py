@@ -30,13 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from pnp_twin.twin.errors import ScenarioError, clip, read_user_text
+from pnp_twin.twin.errors import ScenarioError, clip, tail
+from pnp_twin.twin.inputs import TRACE_BYTES, folder_files, read_user_text
 from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 
 EPOCH = 1e8  # s: a first time this late is a wall-clock (epoch) stamp, not a run time
-MAX_BYTES = 40_000_000  # about two million rows: within a run's budget (twin.budget)
 MAX_KIND = 64
 COLUMNS = ("time", "y", "kind")
 
@@ -79,12 +79,13 @@ def trace_files(scenario: Scenario) -> list[Path]:
 
 def trace_paths(trace: str | Sequence[str], source_dir: str | Path | None) -> list[Path]:
     """The files ``feeder.trace`` names: a file, a list of files, or a folder whose ``*.csv``
-    files (sorted by name) are the traces; a folder without one is refused naming it."""
+    files (sorted by name) are the traces; a folder without one is refused naming it, and so
+    is a trace named twice (directly, through a link or a folder): it would count twice."""
     out: list[Path] = []
     for name in [trace] if isinstance(trace, str) else list(trace):
         path = resolve(str(name), source_dir)
         if path.is_dir():
-            found = sorted(p for p in path.iterdir() if p.suffix.lower() == ".csv")
+            found = folder_files(path, "feeder.trace", ".csv", TraceError)
             if not found:
                 raise TraceError(
                     f"feeder.trace: '{path}' is a folder without .csv traces; give a trace "
@@ -93,7 +94,25 @@ def trace_paths(trace: str | Sequence[str], source_dir: str | Path | None) -> li
             out += found
         else:
             out.append(path)
+    _check_distinct(out)
     return out
+
+
+def _check_distinct(paths: Sequence[Path]) -> None:
+    """Refuse a trace named twice: the replications would not be independent samples."""
+    seen: dict[object, Path] = {}
+    for path in paths:
+        try:
+            st = path.stat()
+            key: object = (st.st_dev, st.st_ino)  # a hard link is the same trace too
+        except OSError:
+            key = path.resolve()
+        if key in seen:
+            raise TraceError(
+                f"feeder.trace: '{tail(str(path))}' is named twice (also as "
+                f"'{tail(str(seen[key]))}'); each trace is one replication, so list it once"
+            )
+        seen[key] = path
 
 
 def for_replication(scenario: Scenario, replication: int) -> Scenario:
@@ -109,6 +128,18 @@ def for_replication(scenario: Scenario, replication: int) -> Scenario:
         )
     feeder = scenario.feeder.model_copy(update={"trace": str(files[replication])})
     return scenario.model_copy(update={"feeder": feeder})
+
+
+def check_replications(scenario: Scenario, n: int, option: str = "replications") -> None:
+    """Refuse ``n`` replications (or seeds) of a scenario replaying fewer than ``n`` traces
+    of a list or folder: replication k replays trace k everywhere, so a trace never counts
+    twice and the same replication never replays another trace (checked before any run)."""
+    files = trace_files(scenario)
+    if len(files) > 1 and n > len(files):
+        raise TraceError(
+            f"{option}: {n} asked, but feeder.trace holds {len(files)} traces and replication "
+            f"k replays trace k; give at most {len(files)}, or more traces"
+        )
 
 
 def resolve(trace: str, source_dir: str | Path | None) -> Path:
@@ -192,7 +223,7 @@ def _rows(path: Path, text: str) -> tuple[list[float], list[float], list[str] | 
 
 def load_trace(path: Path, width: float) -> Trace:
     """Read and check a trace for a belt ``width`` m wide (see the module docstring)."""
-    text = read_user_text(path, "feeder.trace", MAX_BYTES, TraceError)
+    text = read_user_text(path, "feeder.trace", TRACE_BYTES, TraceError)
     t_list, y_list, kinds, lines = _rows(path, text)
     times, ys = np.array(t_list), np.array(y_list)
     neg = np.flatnonzero(times < 0)

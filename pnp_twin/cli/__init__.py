@@ -18,6 +18,7 @@ COMMANDS: dict[str, str] = {
     "validate": "run_cmd",
     "schema": "run_cmd",
     "list": "run_cmd",
+    "compare": "compare_cmd",
     "sweep": "study_cmd",
     "size": "study_cmd",
     "mix": "study_cmd",

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import errno
 import logging
+import os
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -21,6 +22,7 @@ import typer
 from typer.core import TyperGroup
 
 from pnp_twin import __version__
+from pnp_twin.policies.user_guard import TIMEOUT_ENV
 from pnp_twin.twin.errors import UserError
 
 USER_ERROR = 2
@@ -236,8 +238,21 @@ def root(
         bool,
         typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
     ] = False,
+    decision_timeout: Annotated[
+        float | None,
+        typer.Option(
+            "--decision-timeout",
+            min=0.0,
+            max=86400.0,
+            metavar="SECONDS",
+            help="Most seconds a py: policy may take over one decision (default 10; 0: no "
+            "limit); past it the run stops with one line.",
+        ),
+    ] = None,
 ) -> None:
     """Digital twin of multi-robot conveyor pick-and-place lines."""
+    if decision_timeout is not None:  # the environment: worker processes read it too
+        os.environ[TIMEOUT_ENV] = repr(float(decision_timeout))
     if ctx.invoked_subcommand is None:  # bare `pnp-twin`: show what it can do
         typer.echo(ctx.get_help())
         raise typer.Exit()

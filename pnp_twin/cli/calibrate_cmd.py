@@ -37,30 +37,17 @@ from pnp_twin.cli.app import (
     WorkersOpt,
     app,
 )
+from pnp_twin.cli.claim import claim_folder, inputs_of
 from pnp_twin.policies import RULES
 from pnp_twin.studies.calibrate import Problem, calibrate, check_problem
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.calibrate_fields import apply_values, check_distinct, parse_fit
-from pnp_twin.studies.calibrate_output import SUMMARY_FILE, write_outputs
+from pnp_twin.studies.calibrate_output import write_outputs
 from pnp_twin.studies.calibrate_targets import read_targets
-from pnp_twin.studies.lock import StudyLock
 from pnp_twin.studies.plan import StudyError
 from pnp_twin.twin import budget
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
-from pnp_twin.twin.output import check_out_folder, dumps_json, removed_if_refused
-from pnp_twin.twin.trace import trace_file
-
-OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
-"""Entries that make a folder one of our calibrations (to resume)."""
-
-
-def _check_out(out: Path, inputs: dict[str, Path | None]) -> StudyLock:
-    """The output folder, locked (a second calibration into it is refused at once); checked
-    first: not a file, not a folder of other files, not a folder holding an input."""
-    check_out_folder(out, inputs, OURS)
-    lock = StudyLock(out)
-    lock.acquire(shlex.join(["pnp-twin", *sys.argv[1:]]))
-    return lock
+from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.output import dumps_json
 
 
 @contextmanager
@@ -240,19 +227,10 @@ def calibrate_cmd(
         scenario, targets, fit or [], sets, policy, replications, max_evals, profile, pairs
     )
     _check_work(problem, force)
-    inputs = {
-        "scenario file": find_scenario(scenario),
-        "trace": trace_file(problem.scenario),
-        "targets file": targets,
-    }
-    with removed_if_refused(out):
-        lock = _check_out(out, inputs)
-        try:
-            with _journal(out, fresh):
-                args = (scenario, overrides, no_report, json_out)
-                _calibrate(problem, out, workers, engine.value, *args)
-        finally:
-            lock.release()
+    inputs = inputs_of(scenario, problem.scenario, **{"targets file": targets}, policy=policy)
+    with claim_folder(out, "calibrate", inputs), _journal(out, fresh):
+        args = (scenario, overrides, no_report, json_out)
+        _calibrate(problem, out, workers, engine.value, *args)
 
 
 def _calibrate(

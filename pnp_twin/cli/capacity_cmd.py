@@ -17,6 +17,7 @@ import typer
 from pnp_twin.cli.app import (
     Engine,
     EngineOpt,
+    ForceOpt,
     JsonOpt,
     KpiOpt,
     NoReportOpt,
@@ -25,6 +26,7 @@ from pnp_twin.cli.app import (
     WorkersOpt,
     app,
 )
+from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
 from pnp_twin.cli.decision_opts import RayAddressOpt, RayBackendOpt, executor
 from pnp_twin.cli.study_folder import check_policies, run_locked
@@ -33,17 +35,15 @@ from pnp_twin.studies.capacity import (
     AUTO_FIRST,
     AUTO_MOST,
     GAP,
-    SUMMARY_FILE,
     check_capacity,
     parse_replications,
     run_capacity,
 )
 from pnp_twin.studies.kpi_choice import parse_kpi
+from pnp_twin.twin.budget import check_study
 from pnp_twin.twin.errors import UserError
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
+from pnp_twin.twin.loader import load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json
-
-OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
 
 
 @app.command("capacity")
@@ -93,6 +93,7 @@ def capacity_cmd(
     no_report: NoReportOpt = False,
     json_out: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
+    force: ForceOpt = False,
     backend: RayBackendOpt = "local",
     address: RayAddressOpt = None,
 ) -> None:
@@ -105,12 +106,14 @@ def capacity_cmd(
     first = AUTO_FIRST if reps == "auto" else int(reps)
     check_capacity(sc, target, confidence, first, vary or [], start, gap, max_replications)
     check_policies(policy or [sc.policy], sc.robots.count)  # all before the folder exists
+    most = max_replications if reps == "auto" else first
+    check_study(sc, {}, len(policy or [sc.policy]), most, force)  # work limit
     n_workers = workers or (os.cpu_count() or 1)
     with executor(backend, n_workers, address) as runner:
         result = run_locked(
             out,
-            {"scenario file": find_scenario(scenario)},
-            OURS,
+            "capacity",
+            inputs_of(scenario, sc, policy=policy),
             lambda cmd: run_capacity(
                 sc,
                 out,

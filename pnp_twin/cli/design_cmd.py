@@ -18,6 +18,7 @@ import typer
 from pnp_twin.cli.app import (
     Engine,
     EngineOpt,
+    ForceOpt,
     JsonOpt,
     KpiOpt,
     NoReportOpt,
@@ -26,6 +27,7 @@ from pnp_twin.cli.app import (
     WorkersOpt,
     app,
 )
+from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
 from pnp_twin.cli.decision_opts import (
     AcrossOpt,
@@ -36,15 +38,14 @@ from pnp_twin.cli.decision_opts import (
     executor,
 )
 from pnp_twin.cli.study_folder import check_policies, run_locked
-from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.deploy import check_scenario_out, scenario_file_text, write_scenario_file
-from pnp_twin.studies.design import SUMMARY_FILE, check_baseline, check_design, run_design
+from pnp_twin.studies.design import check_baseline, check_design, run_design
 from pnp_twin.studies.kpi_choice import parse_kpi
+from pnp_twin.twin.budget import check_study
 from pnp_twin.twin.errors import UserError
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
+from pnp_twin.twin.loader import load_scenario, parse_sets
 from pnp_twin.twin.output import dumps_json
-
-OURS = (".study.lock", ".study.lock.json", EVALS, SUMMARY_FILE)
+from pnp_twin.twin.trace import trace_files
 
 
 @app.command("design")
@@ -84,6 +85,7 @@ def design_cmd(
     no_report: NoReportOpt = False,
     json_out: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
+    force: ForceOpt = False,
     across: AcrossOpt = None,
     baseline: BaselineOpt = None,
     write_scenario: WriteScenarioOpt = None,
@@ -91,13 +93,16 @@ def design_cmd(
     address: RayAddressOpt = None,
 ) -> None:
     """The cheapest configuration meeting a target gripping rate with a confidence."""
-    sets_map = parse_sets(sets or [])
-    sc = load_scenario(scenario, sets_map)
+    sc = load_scenario(scenario, parse_sets(sets or []))
     figure = parse_kpi(kpi, sc)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; give a folder")
     if not vary and not policy:
         raise UserError("--vary: give at least one field to vary, e.g. --vary robots.count=3:8")
+    traces = len(trace_files(sc))
+    if traces > 1 and max_replications > traces:  # trace k in replication k: each once
+        max_replications, replications = traces, min(replications, traces)
+        note(f"feeder.trace: {traces} traces, so at most {traces} replications (trace k each)")
     check_design(
         sc,
         target,
@@ -110,7 +115,8 @@ def design_cmd(
         across or [],
     )  # every mistake is one line before the folder exists
     check_policies(policy or [sc.policy], sc.robots.count)
-    inputs = {"scenario file": find_scenario(scenario), "costs": costs, "baseline": baseline}
+    check_study(sc, {}, len(policy or [sc.policy]), max_replications, force)  # work limit
+    inputs = inputs_of(scenario, sc, costs=costs, policy=policy, baseline=baseline)
     today = check_baseline(baseline, costs, sc, across or [])
     if write_scenario is not None:
         check_scenario_out(write_scenario, inputs, "--write-scenario")
@@ -118,8 +124,8 @@ def design_cmd(
     with runner:
         result = run_locked(
             out,
+            "design",
             inputs,
-            OURS,
             lambda cmd: run_design(
                 sc,
                 out,

@@ -10,8 +10,6 @@ JSON with ``--json``.
 from __future__ import annotations
 
 import math
-import shlex
-import sys
 from contextlib import nullcontext
 from pathlib import Path
 from typing import Annotated
@@ -23,6 +21,7 @@ from rich.table import Table
 from pnp_twin.cli.app import (
     Engine,
     EngineOpt,
+    ForceOpt,
     JsonOpt,
     KpiOpt,
     ProcessesOpt,
@@ -31,17 +30,17 @@ from pnp_twin.cli.app import (
     SetOpt,
     app,
 )
+from pnp_twin.cli.claim import claim_folder, inputs_of
 from pnp_twin.cli.console import note, stdout_console
 from pnp_twin.cli.decision_opts import RayAddressOpt, RayBackendOpt, executor
 from pnp_twin.cli.study_folder import with_duration
 from pnp_twin.parallel import ray_session
+from pnp_twin.policies.rules import RULES
 from pnp_twin.studies.headroom import BOUND_NOTE, Headroom, HeadroomSettings, check_policies
 from pnp_twin.studies.kpi_choice import parse_kpi
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
-from pnp_twin.twin.output import check_out_folder, dumps_json, removed_if_refused
-
-OURS = (".study.lock", ".study.lock.json", "headroom.json")
-"""Entries that make a folder a headroom study of ours (run again into it: rewritten)."""
+from pnp_twin.twin.budget import check_study
+from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.output import dumps_json
 
 
 @app.command("headroom")
@@ -86,6 +85,7 @@ def headroom(
     engine: EngineOpt = Engine.fast,
     as_json: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
+    force: ForceOpt = False,
     backend: RayBackendOpt = "local",
     address: RayAddressOpt = None,
 ) -> None:
@@ -108,19 +108,14 @@ def headroom(
     )
     executor(backend, workers, address)  # a bad backend or address: one line, nothing made
     check_policies(sc, settings)  # a bad name fails before the folder is made
-    check_out_folder(out, {"scenario file": find_scenario(scenario)}, OURS)
+    runs = len(settings.policies) + len(RULES) + 4  # + VAL, the mix, lookahead, bound
+    check_study(sc, {}, runs, seeds, force)
     from pnp_twin.studies.headroom import run_headroom
-    from pnp_twin.studies.lock import StudyLock
 
-    with removed_if_refused(out):
-        lock = StudyLock(out)
-        lock.acquire(shlex.join(["pnp-twin", *sys.argv[1:]]))
-        try:
-            with ray_session(workers, address) if backend == "ray" else nullcontext():
-                result = run_headroom(sc, settings, _progress)
-            write_headroom(result, out)
-        finally:
-            lock.release()
+    with claim_folder(out, "headroom", inputs_of(scenario, sc, policy=policy)):
+        with ray_session(workers, address) if backend == "ray" else nullcontext():
+            result = run_headroom(sc, settings, _progress)
+        write_headroom(result, out)
     if as_json:
         typer.echo(dumps_json(result.to_json(), indent=2))
         return

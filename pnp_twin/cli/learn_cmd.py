@@ -23,13 +23,15 @@ from rich import box
 from rich.table import Table
 
 from pnp_twin.cli.app import INTERRUPTED, Engine, ScenarioArg, SetOpt, app, fail
+from pnp_twin.cli.claim import check_folder, inputs_of
 from pnp_twin.cli.console import stdout_console
 from pnp_twin.cli.train_progress import TrainProgress
 from pnp_twin.learning.envs.options import REWARD_WEIGHTS
 from pnp_twin.learning.train_args import TrainArgs, field_help
 from pnp_twin.parallel import BACKENDS, pool_map_ordered, ray_map
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
-from pnp_twin.twin.output import check_out_folder
+from pnp_twin.twin.folder_kind import write_kind
+from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.trace import check_replications
 
 TD_RULES = "FIFO,LIFO,SIRO,SD,LD,SPT"
 
@@ -228,6 +230,7 @@ def train_cmd(**kw: Any) -> None:
     if kw["backend"] not in BACKENDS:
         fail(f"--backend: '{kw['backend']}' is not allowed; allowed {', '.join(BACKENDS)}")
     args = _train_args(kw)
+    write_kind(Path(kw["out"]), "train")  # checked above; a folder of training runs now
     runs = [replace(args, seed=s) for s in range(args.seed, args.seed + kw["seeds"])]
     if len(runs) == 1:
         folders = [_train_with_progress(runs[0])]
@@ -244,7 +247,7 @@ def _check_train_out(out: Path, scenario: str) -> None:
     runs: set[str] = set()
     if out.is_dir():
         runs = {e.name for e in out.iterdir() if e.is_dir() and e.name.count("__") >= 2}
-    check_out_folder(out, {"scenario file": find_scenario(scenario)}, runs)
+    check_folder(out, "train", inputs_of(scenario), legacy=runs)
 
 
 def _train_args(kw: dict[str, Any]) -> TrainArgs:
@@ -407,6 +410,7 @@ def evaluate_cmd(
         )
     reference = target if prefix.lower() == "hdqn" else policy
     line = load_scenario(scenario, parse_sets(sets or []))
+    check_replications(line, seeds, "--seeds")  # seed k replays trace k
     if mix is not None:
         make_policy(mix, line.robots.count)  # a bad mix fails here, in one line
     if out is not None and out.exists() and not out.is_dir():

@@ -21,12 +21,12 @@ from rich import box
 from rich.table import Table
 
 from pnp_twin.cli.app import Engine, ScenarioArg, SetOpt, app
+from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note, stderr_console, stdout_console
 from pnp_twin.policies import make_policy
 from pnp_twin.twin.budget import check_run
 from pnp_twin.twin.loader import (
     ScenarioError,
-    find_scenario,
     load_scenario,
     parse_sets,
     shipped_scenarios,
@@ -111,7 +111,27 @@ def run(
         typer.Option(
             "--report",
             metavar="FILE",
-            help="Write the run's HTML report (KPIs, robots, timeline, belt, warm-up) to FILE.",
+            help="Write the run's HTML report (KPIs, replay, robots, timeline, warm-up) to FILE.",
+        ),
+    ] = None,
+    replay_window: Annotated[
+        float,
+        typer.Option(
+            "--replay-window",
+            min=1.0,
+            max=3600.0,
+            metavar="SECONDS",
+            help="How much of the run the report's replay and --gif show, from the end of "
+            "the warm-up (about 0.1 MB per simulated minute on paper_baseline).",
+        ),
+    ] = 60.0,
+    gif: Annotated[
+        Path | None,
+        typer.Option(
+            "--gif",
+            metavar="FILE",
+            help="Write the replay window as an animated GIF to FILE (5x speed; needs the "
+            "gif extra: imageio, Pillow).",
         ),
     ] = None,
 ) -> None:
@@ -120,6 +140,10 @@ def run(
         raise OutputError(f"--report: '{report}' must end in .html")
     if report is not None:
         check_writable(report, "--report")
+    if gif is not None:
+        if gif.suffix.lower() != ".gif":
+            raise OutputError(f"--gif: '{gif}' must end in .gif")
+        check_writable(gif, "--gif")
     if events is not None:
         check_table_path(events, "--events")
     if spans is not None:
@@ -133,14 +157,15 @@ def run(
             if other is not None and same_file(report, other):
                 raise OutputError(f"--report: '{report}' is the file {option} writes")
     scn = _load(scenario, sets)
-    inputs = {"scenario file": find_scenario(scenario), "trace": trace_file(scn)}
+    inputs = inputs_of(scenario, scn, policy=policy)
     traces = trace_files(scn)
     if len(traces) > 1:  # one run, one trace: the first (a study replays trace k in rep k)
         note(
             f"feeder.trace: {len(traces)} traces; this run replays the first, "
             f"'{traces[0].name}' (a study replays trace k in replication k)"
         )
-    for option, output in (("--events", events), ("--spans", spans), ("--report", report)):
+    outputs = (("--events", events), ("--spans", spans), ("--report", report), ("--gif", gif))
+    for option, output in outputs:
         if output is not None:
             check_not_inputs(output, inputs, option)
     check_run(scn, force)
@@ -157,11 +182,31 @@ def run(
         write_table(result.spans, spans, "--spans")
         note(f"wrote {len(result.spans)} robot state spans to {spans}")
     if report is not None:
+        from pnp_twin.reports.record_figures import Animation
         from pnp_twin.reports.run_report import build_run_report  # the front end imports reports
 
         scenario_dict = scn.model_dump(mode="json")
-        build_run_report(result.kpis, result.parts, result.spans, scenario_dict, report)
+        window = Animation(seconds=replay_window)
+        build_run_report(
+            result.kpis, result.parts, result.spans, scenario_dict, report, animation=window
+        )
         note(f"report: {report}")
+    if gif is not None:
+        from pnp_twin.reports.replay_data import replay_data
+        from pnp_twin.reports.replay_gif import write_gif
+
+        label = f"{result.kpis.get('policy')}, seed {result.kpis.get('seed')}"
+        data = replay_data(
+            result.parts,
+            result.spans,
+            scn.model_dump(mode="json"),
+            result.kpis.get("seed"),
+            None,
+            replay_window,
+            label,
+        )
+        write_gif(data, gif)
+        note(f"GIF: {gif} ({gif.stat().st_size / 1e6:.1f} MB)")
     stats = getattr(pol, "stats", None)  # a policy that reports its own cost (lookahead)
     extra = {"policy_stats": stats()} if callable(stats) else {}
     if as_json:

@@ -16,7 +16,7 @@ import sys
 import textwrap
 import time
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any
@@ -48,31 +48,27 @@ from pnp_twin.cli.app import (
     WorkersOpt,
     app,
 )
+from pnp_twin.cli.claim import claim_folder, inputs_of
 from pnp_twin.cli.console import note, stderr_console, stdout_console
 from pnp_twin.cli.decision_opts import AcrossOpt, WriteScenarioOpt
 from pnp_twin.studies import Options, build_plan, run_sweep
-from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.costing import check_costs, read_costs
 from pnp_twin.studies.deploy import check_scenario_out, scenario_file_text, write_scenario_file
 from pnp_twin.studies.design_conditions import parse_across
 from pnp_twin.studies.folder import Tables
-from pnp_twin.studies.journal import DEFINITION
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.studies.plan import AUTO
 from pnp_twin.studies.rulemix import DEFAULT_BUDGET, check_mix, run_mix
 from pnp_twin.studies.sizing import COUNT, MTBF, check_size, run_size
 from pnp_twin.twin.budget import check_study
-from pnp_twin.twin.errors import UserError, check_regular, excerpt
+from pnp_twin.twin.errors import UserError, excerpt
 from pnp_twin.twin.loader import (
     ScenarioError,
-    find_scenario,
     load_scenario,
     parse_sets,
     with_overrides,
 )
-from pnp_twin.twin.output import check_out_folder, removed_if_refused
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.trace import trace_file
 
 log = logging.getLogger(__name__)
 
@@ -185,10 +181,12 @@ def progress_bar(label: str) -> Iterator[Any]:
     except BaseException:
         if not state["last"]:  # nothing done: the error line alone says what happened
             bar.live.transient = True
+            console.quiet = True  # not even the line the bar would end with
         raise
     finally:
         if bar.live.is_started:
             bar.stop()
+        console.quiet = False
 
 
 def _options(
@@ -212,7 +210,6 @@ def _costs(path: Path | None, scenarios: Sequence[Scenario]) -> dict[str, Any] |
     (sweep, size and mix share it)."""
     if path is None:
         return None
-    check_regular(path, "--costs", UserError)
     prices = read_costs(path)
     check_costs(prices, scenarios)
     return prices
@@ -306,15 +303,14 @@ def _precision_line(out: Path) -> str | None:
     )
 
 
-OURS = (".study.lock", ".study.lock.json", DEFINITION, EVALS)
-"""Entries that make a folder one of our studies (or calibrations), to resume."""
-
-
-def _check_out(out: Path, scenario: str, sc: Scenario) -> None:
-    """The study folder, checked but not created (the study's lock creates it): not a file,
-    not a folder of other files, not a folder holding the scenario or its trace."""
-    inputs = {"scenario file": find_scenario(scenario), "trace": trace_file(sc)}
-    check_out_folder(out, inputs, OURS)
+def _claim(
+    kind: str, out: Path, scenario: str, sc: Scenario, policy: list[str] | None, costs: Path | None
+) -> AbstractContextManager[str]:
+    """The study folder claimed for a ``kind`` study (its journal locks it): checked before
+    anything is written (new, empty or a ``kind`` study to resume; holding no input and
+    inside none), its kind recorded, removed again if the study is refused before a run."""
+    inputs = inputs_of(scenario, sc, costs=costs, policy=policy)
+    return claim_folder(out, kind, inputs, lock=False)
 
 
 def _report(out: Path, skip: bool) -> None:
@@ -387,8 +383,7 @@ def sweep(
     _check_work(sc, reps, _policy_count(sc, policy), force)
     plan = build_plan(sc, policies=policy, replications=reps)
     prices = _costs(costs, plan.scenarios)
-    _check_out(out, scenario, sc)
-    with removed_if_refused(out), progress_bar("sweep") as update:
+    with _claim("sweep", out, scenario, sc, policy, costs), progress_bar("sweep") as update:
         opts = _options(workers, backend, address, fresh, update, engine=engine)
         opts.costs, opts.costs_file = prices, str(costs or "")
         tables = run_sweep(plan, out, opts)
@@ -470,14 +465,13 @@ def size(
     target = check_size(sc, target, confidence, policy, reps, layout)
     plan = build_plan(sc, policies=policy, replications=reps) if costs else None
     prices = _costs(costs, plan.scenarios) if plan is not None else None
-    _check_out(out, scenario, sc)
     if write_scenario is not None:
-        inputs = {"scenario file": find_scenario(scenario), "costs": costs}
+        inputs = inputs_of(scenario, sc, costs=costs, policy=policy)
         check_scenario_out(write_scenario, inputs, "--write-scenario")
     opts = _options(workers, backend, address, fresh, None, confidence, engine)
     opts.costs, opts.costs_file = prices, str(costs or "")
     opts.kpi = figure
-    with removed_if_refused(out), progress_bar("size") as update:
+    with _claim("size", out, scenario, sc, policy, costs), progress_bar("size") as update:
         opts.progress = update
         tables, sizing = run_size(sc, out, target, opts, policy, reps, layout)
     if write_scenario is not None:
@@ -564,10 +558,9 @@ def mix(
     names = _rule_list(rules)
     check_mix(sc, names, reps if isinstance(reps, int) else None, budget)
     prices = _costs(costs, [sc])  # every mix runs the same line: one price
-    _check_out(out, scenario, sc)
     opts = _options(workers, backend, address, fresh, None, engine=engine)
     opts.costs, opts.costs_file = prices, str(costs or "")
-    with removed_if_refused(out), progress_bar("mix") as update:
+    with _claim("mix", out, scenario, sc, None, costs), progress_bar("mix") as update:
         opts.progress = update
         _, result = run_mix(sc, out, opts, names, reps if isinstance(reps, int) else None, budget)
     t = Table(

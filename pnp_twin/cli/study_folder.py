@@ -4,16 +4,13 @@ lock."""
 
 from __future__ import annotations
 
-import shlex
-import sys
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TypeVar
 
+from pnp_twin.cli.claim import Inputs, claim_folder
 from pnp_twin.policies import make_policy
-from pnp_twin.studies.lock import StudyLock
 from pnp_twin.twin.loader import with_overrides
-from pnp_twin.twin.output import check_out_folder
 from pnp_twin.twin.scenario import Scenario
 
 T = TypeVar("T")
@@ -34,19 +31,8 @@ def with_duration(scenario: Scenario, duration: float | None) -> Scenario:
     return with_overrides(scenario, {"duration": duration, "warmup": warmup})
 
 
-def run_locked(
-    out: Path,
-    inputs: Mapping[str, str | Path | None],
-    ours: Iterable[str],
-    work: Callable[[str], T],
-) -> T:
-    """Check ``out`` (new, empty or one of ours; holding none of ``inputs``), then run
-    ``work(command)`` with the folder locked under the command line that asked."""
-    check_out_folder(out, inputs, ours)
-    command = shlex.join(["pnp-twin", *sys.argv[1:]])
-    lock = StudyLock(out)
-    lock.acquire(command)
-    try:
+def run_locked(out: Path, kind: str, inputs: Inputs, work: Callable[[str], T]) -> T:
+    """Claim ``out`` for a ``kind`` command (:func:`~pnp_twin.cli.claim.claim_folder`:
+    checked, locked, its kind recorded), then run ``work(command)`` in it."""
+    with claim_folder(out, kind, inputs) as command:
         return work(command)
-    finally:
-        lock.release()

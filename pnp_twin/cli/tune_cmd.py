@@ -18,6 +18,7 @@ import typer
 from pnp_twin.cli.app import (
     Engine,
     EngineOpt,
+    ForceOpt,
     JsonOpt,
     ProcessesOpt,
     RunDurationOpt,
@@ -25,16 +26,15 @@ from pnp_twin.cli.app import (
     SetOpt,
     app,
 )
+from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
 from pnp_twin.cli.decision_opts import WriteScenarioOpt
 from pnp_twin.cli.study_folder import run_locked, with_duration
 from pnp_twin.studies.deploy import check_scenario_out, scenario_file_text, write_scenario_file
 from pnp_twin.studies.tune import Tuned, TuneSettings, check_tune
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
-from pnp_twin.twin.output import dumps_json, removed_if_refused
-
-OURS = (".study.lock", ".study.lock.json", "tune.json")
-"""Entries that make a folder a tune study of ours (run again into it: rewritten)."""
+from pnp_twin.twin.budget import check_study
+from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.output import dumps_json
 
 
 @app.command("tune")
@@ -82,6 +82,7 @@ def tune(
     workers: ProcessesOpt = 1,
     engine: EngineOpt = Engine.fast,
     as_json: JsonOpt = False,
+    force: ForceOpt = False,
     write_scenario: WriteScenarioOpt = None,
 ) -> None:
     """The settings of a controller's balancing mode (share or lane) that maximise G, or meet
@@ -100,7 +101,8 @@ def tune(
         workers=workers,
     )
     check_tune(sc, settings)  # everything refusable before the folder is made
-    inputs = {"scenario file": find_scenario(scenario)}
+    check_study(sc, {}, trials + 2, seeds + tuning_seeds, force)  # work limit
+    inputs = inputs_of(scenario, sc)
     if write_scenario is not None:
         check_scenario_out(write_scenario, inputs, "--write-scenario")
     from pnp_twin.studies.tune import run_tune
@@ -110,8 +112,7 @@ def tune(
         write_tune(result, out)
         return result
 
-    with removed_if_refused(out):
-        result = run_locked(out, inputs, OURS, work)
+    result = run_locked(out, "tune", inputs, work)
     if write_scenario is not None:
         text = scenario_file_text(
             sc.model_dump(mode="json"),

@@ -34,6 +34,7 @@ from pnp_twin.twin.output import write_table
 from pnp_twin.twin.run import simulate
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.stats import t_interval
+from pnp_twin.twin.trace import for_replication
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +65,10 @@ def _rates(
     scenario: Scenario, make: Callable[[], Policy], seeds: Sequence[int], engine: str
 ) -> tuple[list[float], str]:
     """Gripping rate per seed and the engine that ran (the last run's; a policy runs on one)."""
-    results = [simulate(scenario, make(), seed=s, engine=engine) for s in seeds]
+    results = [  # seed k replays trace k of a folder of traces
+        simulate(for_replication(scenario, k), make(), seed=s, engine=engine)
+        for k, s in enumerate(seeds)
+    ]
     ran = results[-1].meta.get("engine", "simpy") if results else engine
     return [r.kpis["gripping_rate"] for r in results], str(ran)
 

@@ -35,6 +35,7 @@ from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.twin.errors import UserError
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.stats import t_quantile
+from pnp_twin.twin.trace import check_replications
 
 log = logging.getLogger(__name__)
 
@@ -122,6 +123,7 @@ def check_problem(problem: Problem) -> None:
     t = problem.targets
     if problem.replications < 1:
         raise StudyError(f"--replications: {problem.replications} is not allowed; give 1 or more")
+    check_replications(problem.scenario, problem.replications, "--replications")
     if problem.max_evals < 1:
         raise StudyError(f"--max-evals: {problem.max_evals} is not allowed; give 1 or more")
     corners = itertools.product(*[(p.low, p.high) for p in problem.params])

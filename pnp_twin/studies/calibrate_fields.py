@@ -123,7 +123,7 @@ def _leaf(
             _range(ref, metadata)
         return FieldRef(path, keys, None, _is_number(base), base is int, **ref)
     origin = typing.get_origin(base)
-    if len(rest) != 1 or origin is not tuple or not rest[0].isdigit():
+    if len(rest) != 1 or origin is not tuple or not (rest[0].isascii() and rest[0].isdigit()):
         raise StudyError(
             f"{option} '{path}': '{'.'.join(keys)}' is a value; only one element of a list "
             f"field can be named, by its index (e.g. robots.bin_offset.1)"

@@ -21,6 +21,7 @@ import pandas as pd
 
 from pnp_twin.studies.calibrate import Calibration, label, near_optimal, noise_margin
 from pnp_twin.studies.calibrate_fields import raw_with_values
+from pnp_twin.studies.summary import BOUNDS
 from pnp_twin.twin.loader import apply_overrides, find_scenario, read_mapping
 from pnp_twin.twin.output import dumps_toml, write_json, write_table, write_text
 
@@ -30,6 +31,13 @@ SUMMARY_FILE = "calibration.json"
 
 def _num(v: Any) -> float | None:
     return None if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)
+
+
+def _bounded(kpi: str, x: float) -> float | None:
+    """An interval's bound as shown: inside the KPI's own range (G in [0, 100] %)."""
+    v = _num(x)
+    lo, hi = BOUNDS.get(kpi, (-math.inf, math.inf))
+    return None if v is None else min(max(v, lo), hi)
 
 
 def points_rows(cal: Calibration) -> list[dict[str, Any]]:
@@ -46,8 +54,8 @@ def points_rows(cal: Calibration) -> list[dict[str, Any]]:
                 kpi=k,
                 target=float(t.target[i, j]),
                 predicted=pred.mean[k],
-                ci_low=_num(pred.ci_low[k]),
-                ci_high=_num(pred.ci_high[k]),
+                ci_low=_bounded(k, pred.ci_low[k]),
+                ci_high=_bounded(k, pred.ci_high[k]),
                 residual=float(cal.best.residuals[i, j]),
                 weight=float(t.weight[i]),
                 policy=pred.policy,
@@ -85,8 +93,8 @@ def curve_rows(cal: Calibration) -> list[dict[str, Any]]:
                         "value": value,
                         "kpi": k,
                         "predicted": pred.mean[k],
-                        "ci_low": _num(pred.ci_low[k]),
-                        "ci_high": _num(pred.ci_high[k]),
+                        "ci_low": _bounded(k, pred.ci_low[k]),
+                        "ci_high": _bounded(k, pred.ci_high[k]),
                         "policy": pred.policy,
                     }
                 )

@@ -30,7 +30,8 @@ import pandas as pd
 
 from pnp_twin.studies.calibrate_fields import FieldRef, resolve_path
 from pnp_twin.studies.plan import StudyError
-from pnp_twin.twin.errors import clip, read_user_text
+from pnp_twin.twin.errors import clip
+from pnp_twin.twin.inputs import TARGETS_BYTES, read_user_text
 from pnp_twin.twin.loader import parse_value
 
 WEIGHT = "weight"
@@ -91,7 +92,6 @@ def _cell(value: Any) -> Any:
     return value
 
 
-MAX_BYTES = 10_000_000  # a targets file is a few points; anything larger is a mistake
 FRACTIONS = ("efficiency", "utilisation")  # shares, 0..1, as in the study tables
 
 
@@ -130,7 +130,7 @@ def _header(path: Path, text: str) -> None:
 def _read(path: Path) -> pd.DataFrame:
     if not path.exists() and not path.is_symlink():
         raise StudyError(f"--targets: no file '{path}'")
-    text = read_user_text(path, f"--targets {path}", MAX_BYTES, StudyError)
+    text = read_user_text(path, f"--targets {path}", TARGETS_BYTES, StudyError)
     _header(path, text)
     try:
         frame = pd.read_csv(io.StringIO(text), comment="#", skipinitialspace=True)
@@ -199,6 +199,11 @@ def read_targets(path: str | Path) -> Targets:
             raise StudyError(
                 f"--targets {p}: row {bad[0] + 1}, column weight: {weight[bad[0]]} is not "
                 f"allowed; give a finite number >= 0"
+            )
+        if not weight.sum() > 0:
+            raise StudyError(
+                f"--targets {p}: column weight: every row's weight is 0, so no point counts "
+                "and nothing can be fitted; give at least one row a weight above 0"
             )
     values = []
     for i in range(len(frame)):

@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.plan import StudyError
-from pnp_twin.twin.errors import clip, file_kind
+from pnp_twin.twin.errors import clip
+from pnp_twin.twin.inputs import file_kind
 from pnp_twin.twin.output import check_not_inputs, dumps_toml, write_text
 from pnp_twin.twin.trace import trace_paths
 

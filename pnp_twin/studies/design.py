@@ -68,7 +68,7 @@ from pnp_twin.studies.vary import Continuous, parse_vary, round_value
 from pnp_twin.twin.loader import ScenarioError, load_scenario, with_overrides
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.trace import trace_files
+from pnp_twin.twin.trace import check_replications, for_replication, trace_files
 
 SUMMARY_FILE = "design.json"
 
@@ -145,6 +145,7 @@ def check_design(
             "meets the target; give several traces (feeder.trace = a list or a folder) or add "
             "--set feeder.arrival=poisson (or normal) for random arrivals at its mean rate"
         )
+    check_replications(scenario, most, "--max-replications")  # trace k in replication k
     costs = read_costs(costs_file)
     grid = parse_grid(vary)
     box = {p: r for p, r in grid.items() if isinstance(r, Continuous)}
@@ -269,7 +270,8 @@ def run_design(
                     for cell in c.cells
                 ]
                 ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine, executor)
-                rows = ev.runs([cell.scenario for cell in need], names)
+                lines = [for_replication(cell.scenario, rep) for cell in need]  # trace k in rep k
+                rows = ev.runs(lines, names)
                 for key in counts:
                     counts[key] += getattr(ev, key)
                 counts["runs_replayed"] += ev.runs_from_points

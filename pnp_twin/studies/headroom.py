@@ -31,11 +31,12 @@ from typing import Any
 import numpy as np
 
 from pnp_twin.policies.registry import make_policy
-from pnp_twin.policies.rules import RULES
+from pnp_twin.policies.rules import NAMED_RULES, RULES
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.twin.run import simulate
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.stats import t_interval
+from pnp_twin.twin.stats import percent_interval, t_interval
+from pnp_twin.twin.trace import check_replications, for_replication
 
 log = logging.getLogger(__name__)
 
@@ -171,6 +172,9 @@ class Headroom:
 def check_policies(scenario: Scenario, settings: HeadroomSettings) -> None:
     """Every policy name is one the registry makes (a bad one: one-line PolicyError)."""
     n = scenario.robots.count
+    check_replications(scenario, settings.seeds, "--seeds")  # seed k replays trace k
+    if settings.mix is not None:
+        _check_static_mix(settings.mix, n)
     for spec in (*settings.policies, settings.lookahead, *([settings.mix] if settings.mix else [])):
         make_policy(spec, n)
     if not settings.lookahead.strip().lower().startswith("lookahead"):
@@ -179,6 +183,18 @@ def check_policies(scenario: Scenario, settings: HeadroomSettings) -> None:
         raise PolicyError(
             f"--lookahead: '{settings.lookahead[:60]}' is not a lookahead controller; give "
             "lookahead or lookahead:K=32,H=1.5,base=SD"
+        )
+
+
+def _check_static_mix(mix: str, n: int) -> None:
+    """``--mix`` is reported as the best *static* mix: a rule, or one rule per robot."""
+    names = [x.strip().upper() for x in mix.split(",")]
+    if not all(x in NAMED_RULES for x in names) or len(names) not in (1, n):
+        from pnp_twin.policies.registry import PolicyError
+
+        raise PolicyError(
+            f"--mix: '{mix[:60]}' is not a static rule mix; give one rule or {n} rules, one per "
+            f"robot (e.g. {','.join(['SD'] * n)}), from {', '.join(NAMED_RULES)}"
         )
 
 
@@ -214,7 +230,10 @@ def _rates(
     decision and mean measured part flow (and, into ``figure``, the figure's mean flow)."""
     from pnp_twin.parallel import pool_map_ordered, ray_map_ordered
 
-    jobs = [(scenario, spec, s, settings.engine, settings.kpi) for s in seeds]
+    jobs = [  # seed k replays trace k of a folder of traces
+        (for_replication(scenario, k), spec, s, settings.engine, settings.kpi)
+        for k, s in enumerate(seeds)
+    ]
     done = [0]
 
     def tick(_: Any) -> None:
@@ -278,7 +297,7 @@ def search_mix(
 
 def _entry(role: str, spec: str, values: list[float], ref: list[float], confidence: float) -> Entry:
     e = Entry(role, spec, values)
-    e.gripping_rate, e.ci_low, e.ci_high = t_interval(values, confidence)
+    e.gripping_rate, e.ci_low, e.ci_high = percent_interval(values, confidence)
     diff = list(np.asarray(values) - np.asarray(ref))
     e.gain, e.gain_ci_low, e.gain_ci_high = t_interval(diff, confidence)
     if all(d == 0.0 for d in diff):  # the reference itself: no spread, no interval
@@ -350,8 +369,22 @@ def answer(h: Headroom) -> str:
     sure = "above zero" if la.gain_ci_low > 0 else "not surely above zero"
     extra = "".join(f"; {e.policy} gets {_points(e)}" for e in h.policies)
     return (
-        f"On {sc.name} the best rule, {b.policy}, {grips}; a smarter "
-        f"controller could gain up to {_points(bound)} here (the clairvoyant one-step bound); "
+        f"On {sc.name} the best rule, {b.policy}, {grips}; {_bound_clause(bound, la)}; "
         f"the lookahead controller gets {_points(la)} ({sure}){worth}; the best static mix "
         f"{h.best_mix.policy} gets {_points(h.best_mix)}{extra}."
+    )
+
+
+def _bound_clause(bound: Entry, la: Entry) -> str:
+    """The clairvoyant bound's clause: "could gain up to" only where it is not below what
+    the lookahead controller got (on few seeds, or with a different plan, it can be)."""
+    if bound.gain >= la.gain:
+        return (
+            f"a smarter controller could gain up to {_points(bound)} here (the clairvoyant "
+            "one-step bound)"
+        )
+    return (
+        f"the clairvoyant one-step bound gets {_points(bound)}, below the lookahead "
+        "controller here (a one-step planner told the future is no bound on a planner that "
+        "looks further), so it bounds nothing on this line"
     )

@@ -13,8 +13,8 @@ The file is TOML::
 
 Every robot is priced at its own arm speed (``robots.overrides`` included); a speed between
 two listed ones is priced by linear interpolation, a speed outside them is refused. The file
-is read through :func:`pnp_twin.twin.errors.read_user_text` (a regular file, at most
-:data:`MAX_BYTES`, UTF-8), and every number is checked: finite, at least 0, at most
+is read through :func:`pnp_twin.twin.inputs.read_user_text` (a regular file, at most
+``COSTS_BYTES``, UTF-8), and every number is checked: finite, at least 0, at most
 :data:`MAX_NUMBER`; speed keys are positive speeds, each listed once ("3" and "3.0" are the
 same speed).
 """
@@ -28,13 +28,13 @@ from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.plan import StudyError
-from pnp_twin.twin.errors import excerpt, read_user_text
+from pnp_twin.twin.errors import excerpt
+from pnp_twin.twin.inputs import COSTS_BYTES, read_user_text
 from pnp_twin.twin.scenario import Scenario
 
 COST_KEYS = ("robot_price", "belt_price", "lost_part_cost", "hours")
 OPTIONAL_KEYS = ("owned", "hours_per_year")
 SECONDS_PER_HOUR = 3600.0
-MAX_BYTES = 1 << 20  # a cost file is a few lines
 MAX_NUMBER = 1e12  # a price, cost or number of hours above this is a typo (1e308 overflows)
 MAX_SPEED = 100.0  # m/s: a price table's keys
 MAX_ROBOT = 64  # robots.count's bound
@@ -110,7 +110,7 @@ def read_costs(path: Path | None) -> dict[str, Any]:
     if path is None:
         return {"robot_price": 1.0, "belt_price": 0.0, "lost_part_cost": 0.0, "hours": 0.0}
     where = f"--costs {path}"
-    text = read_user_text(Path(path), "--costs", MAX_BYTES, StudyError)
+    text = read_user_text(Path(path), "--costs", COSTS_BYTES, StudyError)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

@@ -30,9 +30,12 @@ from pnp_twin.policies import make_policy
 from pnp_twin.policies.balancing import BalancingSettings
 from pnp_twin.policies.rules import RULES
 from pnp_twin.studies.plan import StudyError
+from pnp_twin.twin.budget import estimate_run
+from pnp_twin.twin.errors import excerpt
 from pnp_twin.twin.run import simulate
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.stats import t_interval
+from pnp_twin.twin.stats import percent_interval
+from pnp_twin.twin.trace import check_replications, for_replication
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +89,7 @@ class Scored:
 
     def __post_init__(self) -> None:
         if len(self.g) >= 2:
-            self.mean, self.low, self.high = t_interval(self.g, 0.95)
+            self.mean, self.low, self.high = percent_interval(self.g, 0.95)
         elif self.g:
             self.mean = self.low = self.high = self.g[0]
 
@@ -165,9 +168,12 @@ def check_tune(scenario: Scenario, settings: TuneSettings) -> None:
             f"--strategy: '{settings.strategy}' is not allowed; allowed {', '.join(STRATEGIES)}"
         )
     if settings.rule not in (*RULES, "VAL"):
-        raise StudyError(f"--rule: '{settings.rule}' is not a rule; allowed {', '.join(RULES)}")
+        raise StudyError(
+            f"--rule: {excerpt(settings.rule, 40)} is not a rule; allowed {', '.join(RULES)}"
+        )
     if scenario.robots.count < 2:
         raise StudyError(f"tune: {scenario.name} has one robot; there is nothing to balance")
+    check_replications(scenario, max(settings.seeds, settings.tuning_seeds), "--seeds")
     if settings.target is not None and not 0 < settings.target <= 100:
         raise StudyError(f"--target: {settings.target:g} is outside 0..100 (% of parts)")
     make_policy(settings.lookahead, scenario.robots.count)
@@ -197,12 +203,16 @@ def _one(job: tuple[Scenario, str, int, str]) -> tuple[float, float]:
     return float(k["gripping_rate"]), float(sum(r["passed_on"] for r in k["robots"]))
 
 
+POOL_PARTS = 200_000  # parts below which a worker pool costs more than it saves (~2 s)
+
+
 def score(scenario: Scenario, spec: str, seeds: Sequence[int], settings: TuneSettings) -> Scored:
     """``spec`` run on ``seeds`` (in ``settings.workers`` processes)."""
     from pnp_twin.parallel import pool_map_ordered
 
-    jobs = [(scenario, spec, s, settings.engine) for s in seeds]
-    if settings.workers > 1 and len(jobs) > 1:
+    jobs = [(for_replication(scenario, k), spec, s, settings.engine) for k, s in enumerate(seeds)]
+    parts = estimate_run(scenario).parts * len(jobs)  # a pool costs seconds to start
+    if settings.workers > 1 and len(jobs) > 1 and parts >= POOL_PARTS:
         out = pool_map_ordered(_one, jobs, settings.workers)
     else:
         out = [_one(job) for job in jobs]

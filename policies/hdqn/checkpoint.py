@@ -38,7 +38,8 @@ from pnp_twin.policies.hdqn.agent import AgentConfig, QAgent
 from pnp_twin.policies.hdqn.features import size as feature_size
 from pnp_twin.policies.hdqn.network import PRESETS
 from pnp_twin.policies.registry import rule_names
-from pnp_twin.twin.errors import UserError, file_kind
+from pnp_twin.twin.errors import UserError
+from pnp_twin.twin.inputs import MODEL_BYTES, SCENARIO_BYTES, check_user_file, read_user_text
 from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
@@ -218,11 +219,9 @@ def check_weights(
 
 def read_tensors(path: Path, device: str = "cpu") -> dict[str, torch.Tensor]:
     """The tensors of a safetensors file, or one CheckpointError line (missing, truncated)."""
-    kind = file_kind(path)
-    if kind is not None:
-        raise CheckpointError(f"checkpoint: {path} is {kind}, not a safetensors file")
-    if not path.is_file():
+    if not path.exists():
         raise CheckpointError(f"checkpoint: {path} is missing")
+    check_user_file(path, "checkpoint", MODEL_BYTES, CheckpointError)
     try:
         return load_file(str(path), device=device)
     except Exception as e:  # safetensors raises its own error types for corrupt files
@@ -299,9 +298,10 @@ def resolve(folder: str | Path) -> Path:
 def read_meta(folder: str | Path) -> dict[str, Any]:
     """The metadata of a checkpoint folder."""
     path = resolve(folder)
+    text = read_user_text(path / META, "checkpoint", SCENARIO_BYTES, CheckpointError)
     try:
-        data = json.loads((path / META).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise CheckpointError(f"checkpoint: cannot read {path / META}: {first}") from None
     if isinstance(data, dict) and data.get("format") != FORMAT:

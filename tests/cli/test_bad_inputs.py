@@ -74,6 +74,12 @@ CASES: dict[str, Case] = {
     # --- scenario files: finding, reading, parsing ------------------------------------------
     "missing file": Case(["run", "nothere.toml"], ["nothere.toml", "shipped name"]),
     "unknown shipped name": Case(["validate", "papr_baseline"], ["papr_baseline"]),
+    "compare: one policy": Case(["compare", "two_robot", "-p", "SD"], ["--policy", "exactly two"]),
+    "compare: report not html": Case(
+        ["compare", "two_robot", "-p", "SD", "-p", "FIFO", "--report", "r.txt"],
+        ["--report", "r.txt", ".html"],
+    ),
+    "run: gif not .gif": Case(["run", "two_robot", "--gif", "x.png"], ["--gif", "x.png", ".gif"]),
     "wrong suffix": Case(["run", "s.json"], ["s.json", ".toml, .yaml"], {"s.json": "{}"}),
     "a folder, not a file": Case(["run", "lines"], ["lines"], {"lines/keep": ""}),
     "bad TOML": toml("[belt\nspeed = 1\n", ["s.toml", "not valid TOML"]),

@@ -416,14 +416,15 @@ def test_bad_input_round_two(name: str, tmp_path: Path, monkeypatch: pytest.Monk
 def test_out_slash_is_refused_and_never_written(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """``--out /``: refused as a folder of other files. Guarded, so that a regression fails
-    here without writing a study into the machine's root."""
+    """``--out /``: refused (it holds other files, and the shipped scenario the command
+    reads). Guarded, so that a regression fails here without writing a study into the
+    machine's root."""
 
     def guard(*args: Any, **kwargs: Any) -> Any:
         raise AssertionError("a study was opened in /")
 
     monkeypatch.setattr("pnp_twin.studies.runner.open_session", guard)
-    monkeypatch.setattr("pnp_twin.cli.calibrate_cmd.StudyLock", guard)
+    monkeypatch.setattr("pnp_twin.studies.lock.StudyLock", guard)
     root = set(os.listdir("/"))
     for args in (
         ["sweep", "two_robot", "--out", "/", *SHORT],
@@ -431,7 +432,7 @@ def test_out_slash_is_refused_and_never_written(
         ["mix", "rule_mix", "--out", "/", *SHORT],
         ["calibrate", "two_robot", "--targets", "t.csv", "--out", "/", *FIT],
     ):
-        case = Case(args, ["--out /", "no study of ours"], {"t.csv": TARGETS})
+        case = Case(args, ["--out /:", "keep inputs outside it"], {"t.csv": TARGETS})
         (tmp_path / args[0]).mkdir()
         run_case(case, tmp_path / args[0], monkeypatch)
     assert set(os.listdir("/")) == root

@@ -1,4 +1,5 @@
-"""Every command of the README's "Sizing studies and reports" section runs to completion,
+"""Every command of the guide's "Sizing studies and reports" section (docs/guide/studies.md,
+moved there from the README) runs to completion,
 with the shipped scenarios, as a new user would type it (shorter runs: fewer replications
 and simulated seconds, nothing else changed), and leaves what the README says it leaves."""
 
@@ -21,7 +22,7 @@ STUDIES = {"sweep", "size", "mix"}
 
 def readme_commands() -> list[list[str]]:
     """The ``pnp-twin`` lines of the section's bash blocks, comments dropped."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    text = (ROOT / "docs" / "guide" / "studies.md").read_text(encoding="utf-8")
     section = text.split("## Sizing studies and reports", 1)[1].split("\n## ", 1)[0]
     lines = []
     for block in re.findall(r"```bash\n(.*?)```", section, flags=re.S):

@@ -356,7 +356,7 @@ def outside_guard(args: list[str]) -> Iterator[None]:
     boom = AssertionError(f"a study was opened outside the case's folder: {outside}")
     with (
         mock.patch("pnp_twin.studies.runner.open_session", side_effect=boom),
-        mock.patch("pnp_twin.cli.calibrate_cmd.StudyLock", side_effect=boom),
+        mock.patch("pnp_twin.studies.lock.StudyLock", side_effect=boom),
     ):
         yield
 

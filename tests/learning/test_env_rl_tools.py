@@ -15,6 +15,7 @@ from pnp_twin.learning.envs import ENV_ID, EnvError, PickPlaceEnv, pickplace_v0,
 from pnp_twin.learning.envs.pz_aec import PickPlaceAEC
 from pnp_twin.learning.envs.pz_parallel import PickPlaceParallel
 from pnp_twin.policies import make_policy
+from pnp_twin.twin import picture
 from pnp_twin.twin.loader import load_scenario
 from pnp_twin.twin.run import simulate
 
@@ -22,9 +23,7 @@ SHORT = {"duration": 20.0, "warmup": 1.0}
 
 
 def _pixel(line, x, y, shape):
-    canvas = render._Canvas(line.belt.length, 0.0, 0.0)
-    canvas.y_hi = max(r.bin.position[1] for r in line.robots) + 0.06 + render.MARGIN
-    return canvas.px(x, y)
+    return picture.Canvas(render.layout(line), np.zeros(shape, np.uint8)).px(x, y)
 
 
 def _gym_steps(env, actions):

@@ -1,0 +1,145 @@
+"""The one door every command's outputs go out through.
+
+Before anything is written, a command names what it reads (:func:`inputs_of`: the scenario
+file, every trace of a trace folder and the folder itself, targets, cost and policy files,
+models) and claims what it writes:
+
+- an output file (:func:`check_output_file`): writable, not one of the inputs, not inside
+  an input folder;
+- an output folder (:func:`claim_folder`): new, empty, or a folder of the same kind of
+  command to resume (see :mod:`pnp_twin.twin.folder_kind`); not holding an input and not
+  inside one; then locked for the command's life, its kind recorded, and removed again
+  when the command is refused before it wrote a result.
+
+A new command that claims through here inherits every protection.
+"""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from collections.abc import Iterable, Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+
+from pnp_twin.twin.errors import clip
+from pnp_twin.twin.folder_kind import KIND_FILE, folder_kind, write_kind
+from pnp_twin.twin.loader import find_scenario
+from pnp_twin.twin.output import (
+    LOCK_NAMES,
+    OutputError,
+    check_not_inputs,
+    check_out_folder,
+    check_writable,
+)
+from pnp_twin.twin.scenario import Scenario
+from pnp_twin.twin.trace import trace_files
+
+Inputs = Mapping[str, str | Path | None]
+
+
+def inputs_of(scenario: str | Path | None, sc: Scenario | None = None, **more: object) -> Inputs:
+    """What a command reads: the scenario file, each trace it replays (and a trace folder
+    itself), and ``more`` (label -> path; a ``py:FILE.py:...`` policy names its file)."""
+    out: dict[str, str | Path | None] = {}
+    if scenario is not None:
+        out["scenario file"] = find_scenario(scenario)
+    if sc is not None:
+        for i, path in enumerate(trace_files(sc)):
+            out[f"trace {i + 1}" if i else "trace"] = path
+        folders = [p for p in map(Path, _trace_names(sc)) if _under(p, sc.source_dir).is_dir()]
+        for i, path in enumerate(folders):
+            out[f"trace folder {i + 1}" if i else "trace folder"] = _under(path, sc.source_dir)
+    for label, value in more.items():
+        for i, path in enumerate(_paths(value)):
+            out[f"{label} {i + 1}" if i else label] = path
+    return out
+
+
+def _under(path: Path, source_dir: str | Path | None) -> Path:
+    return path if path.is_absolute() or not source_dir else Path(source_dir) / path
+
+
+def _trace_names(sc: Scenario) -> list[str]:
+    trace = sc.feeder.trace if sc.feeder.arrival == "trace" else None
+    if not trace:
+        return []
+    return [trace] if isinstance(trace, str) else [str(t) for t in trace]
+
+
+def _paths(value: object) -> list[Path]:
+    """The files a value names: a path, or a ``py:FILE.py:...`` policy spec's file."""
+    values = value if isinstance(value, list | tuple) else [value]
+    out = []
+    for v in values:
+        if isinstance(v, Path):
+            out.append(v)
+        elif isinstance(v, str) and v.startswith("py:") and ".py:" in v:
+            out.append(Path(v[3:].split(".py:", 1)[0] + ".py"))
+        elif isinstance(v, str) and v:
+            out.append(Path(v))
+    return out
+
+
+def check_output_file(path: str | Path, option: str, inputs: Inputs) -> Path:
+    """``path`` if a command may write it: writable, neither an input nor inside one."""
+    p = check_writable(path, option)
+    check_not_inputs(p, inputs, option)
+    return p
+
+
+def check_folder(
+    out: str | Path,
+    kind: str,
+    inputs: Inputs,
+    option: str = "--out",
+    legacy: Iterable[str] = (),
+) -> Path:
+    """Check an output folder before anything is written: new, empty, or a ``kind`` folder
+    (one of ours of another kind is refused, naming it), holding no input, inside none.
+    ``legacy``: entries that mark a ``kind`` folder written before kinds were recorded."""
+    p = Path(out)
+    ours = {KIND_FILE, *LOCK_NAMES, *legacy}
+    found = folder_kind(p) if p.is_dir() else None
+    if found is not None and found != kind:
+        raise OutputError(
+            f"{option} {clip(str(p))}: is a folder of `pnp-twin {found}`; `{kind}` resumes only "
+            f"its own folders, so writing there would mix or overwrite the {found} results; "
+            "choose another folder"
+        )
+    if found == kind:
+        ours |= {e.name for e in p.iterdir()}  # ours to resume: whatever it holds
+    elif p.is_dir() and _legacy_evals(p):
+        ours.add("evals")  # a killed design/capacity/calibration of an earlier version
+    return check_out_folder(p, inputs, ours, option)
+
+
+def _legacy_evals(p: Path) -> bool:
+    """A folder of an earlier version holding only a killed study's per-run journal."""
+    names = {e.name for e in p.iterdir()}
+    return "evals" in names and names <= {"evals", *LOCK_NAMES}
+
+
+@contextmanager
+def claim_folder(
+    out: str | Path, kind: str, inputs: Inputs, option: str = "--out", lock: bool = True
+) -> Iterator[str]:
+    """Check ``out`` (:func:`check_folder`), then hold it for the block: locked (unless
+    ``lock`` is False: the study journal locks it itself), its kind recorded, and removed
+    again if the block fails before writing a result. Yields the command line that asked."""
+    from pnp_twin.studies.lock import StudyLock  # the study layer: only when a folder is held
+    from pnp_twin.twin.output import removed_if_refused
+
+    folder = check_folder(out, kind, inputs, option)
+    command = shlex.join(["pnp-twin", *sys.argv[1:]])
+    with removed_if_refused(folder):
+        held = StudyLock(folder) if lock else None
+        if held is not None:
+            held.acquire(command)
+        try:
+            if not (folder / KIND_FILE).is_file():
+                write_kind(folder, kind)
+            yield command
+        finally:
+            if held is not None:
+                held.release()
