@@ -15,14 +15,14 @@ from rich import box
 from rich.table import Table
 
 from pnp_twin.cli.app import ScenarioArg, SetOpt, app
+from pnp_twin.cli.claim import check_output_file, inputs_of
 from pnp_twin.cli.console import note, stdout_console
 from pnp_twin.policies import make_policy
 from pnp_twin.twin.budget import check_run
 from pnp_twin.twin.errors import UserError
-from pnp_twin.twin.loader import find_scenario, load_scenario, parse_sets
-from pnp_twin.twin.output import OutputError, check_not_inputs, check_writable
+from pnp_twin.twin.loader import load_scenario, parse_sets
+from pnp_twin.twin.output import OutputError, check_writable
 from pnp_twin.twin.run import simulate
-from pnp_twin.twin.trace import trace_file
 
 
 @app.command("compare")
@@ -76,8 +76,7 @@ def compare(
         check_writable(report, "--report")
     scn = load_scenario(scenario, parse_sets(sets or []))
     if report is not None:
-        inputs = {"scenario file": find_scenario(scenario), "trace": trace_file(scn)}
-        check_not_inputs(report, inputs, "--report")
+        check_output_file(report, "--report", inputs_of(scenario, scn, policy=names))
     check_run(scn, force)
     pols = [make_policy(name, scn.robots.count) for name in names]  # both checked first
     from pnp_twin.reports.compare_report import (  # the front end imports reports

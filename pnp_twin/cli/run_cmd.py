@@ -158,12 +158,6 @@ def run(
                 raise OutputError(f"--report: '{report}' is the file {option} writes")
     scn = _load(scenario, sets)
     inputs = inputs_of(scenario, scn, policy=policy)
-    traces = trace_files(scn)
-    if len(traces) > 1:  # one run, one trace: the first (a study replays trace k in rep k)
-        note(
-            f"feeder.trace: {len(traces)} traces; this run replays the first, "
-            f"'{traces[0].name}' (a study replays trace k in replication k)"
-        )
     outputs = (("--events", events), ("--spans", spans), ("--report", report), ("--gif", gif))
     for option, output in outputs:
         if output is not None:
@@ -171,6 +165,12 @@ def run(
     check_run(scn, force)
     spec = policy if policy is not None else scn.policy
     pol = make_policy(spec, scn.robots.count)
+    traces = trace_files(scn)
+    if len(traces) > 1:  # one run, one trace: the first (a study replays trace k in rep k)
+        note(
+            f"feeder.trace: {len(traces)} traces; this run replays the first, "
+            f"'{traces[0].name}' (a study replays trace k in replication k)"
+        )
     err = stderr_console()
     busy = err.status(f"simulating {scn.name}...") if err.is_terminal else contextlib.nullcontext()
     with busy:

@@ -71,6 +71,7 @@ SEEDS: dict[str, list[str]] = {  # one small working command line per command
     "tune": ["tune", "line.toml", "--out", "tu", "--trials", "2", "--tuning-seeds", "2",
              "--seeds", "2", "--duration", "5"],
     "task list": ["task", "list"],
+    "compare": ["compare", "line.toml", "-p", "SD", "-p", "py:mine.py:P", "--report", "c.html"],
     "task score": ["task", "score", "baseline", "-p", "SD", "--seeds", "2", "--duration", "5"],
 }  # fmt: skip
 
