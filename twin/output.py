@@ -204,9 +204,26 @@ def removed_if_refused(out: str | Path, only: frozenset[str] = LOCK_NAMES) -> It
 
 
 def _empty(path: Path) -> bool:
+    """A file that holds no result: empty, a store's side file, or a store with no row."""
     try:
-        return path.stat().st_size == 0
+        if path.stat().st_size == 0 or path.name.endswith((".sqlite-wal", ".sqlite-shm")):
+            return True
     except OSError:
+        return False
+    return path.suffix == ".sqlite" and _no_rows(path)
+
+
+def _no_rows(path: Path) -> bool:
+    import sqlite3
+
+    try:
+        db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+        try:
+            tables = [r[0] for r in db.execute("select name from sqlite_master where type='table'")]
+            return all(db.execute(f'select count(*) from "{t}"').fetchone()[0] == 0 for t in tables)
+        finally:
+            db.close()
+    except sqlite3.Error:
         return False
 
 

@@ -1,7 +1,8 @@
 """The ``export`` command of ``pnp-twin``: a study folder as an Excel workbook.
 
 ``pnp-twin export DIR --xlsx FILE`` writes the folder's results, summary, paired and best
-tables as sheets of FILE, units in the headers (``pnp_twin.studies.export``). Nothing is
+tables as sheets of FILE, units in the headers (``pnp_twin.studies.export``), and the runs
+of a folder's runs store (``design``, ``capacity``, ``calibrate``, ``headroom``). Nothing is
 simulated; a folder that is not a study ends with a one-line error and exit code 2.
 """
 
@@ -22,7 +23,9 @@ def export(
     study_dir: Annotated[
         Path,
         typer.Argument(
-            metavar="DIR", help="A study folder (sweep, size, mix).", show_default=False
+            metavar="DIR",
+            help="A study folder (sweep, size, mix; design, capacity, calibrate, headroom).",
+            show_default=False,
         ),
     ],
     xlsx: Annotated[

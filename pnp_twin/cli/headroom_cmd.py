@@ -4,7 +4,8 @@ Runs :func:`pnp_twin.studies.headroom.run_headroom` (best rule, best static mix,
 policies, the lookahead controller and its clairvoyant bound, paired by seed) and writes
 ``headroom.json``, ``runs.csv``, ``summary.csv`` and ``report.html`` into ``--out`` (under the
 folder's study lock, each file written atomically); prints the answer and a table, or the
-JSON with ``--json``.
+JSON with ``--json``. Every run is stored in ``--out``'s ``evals/runs.sqlite`` as it finishes,
+so the same command after a kill resumes: finished runs are read back, not simulated.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from pnp_twin.cli.decision_opts import RayAddressOpt, RayBackendOpt, executor
 from pnp_twin.cli.study_folder import with_duration
 from pnp_twin.parallel import ray_session
 from pnp_twin.policies.rules import RULES
+from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.headroom import BOUND_NOTE, Headroom, HeadroomSettings, check_policies
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.budget import check_study
@@ -111,10 +113,12 @@ def headroom(
     runs = len(settings.policies) + len(RULES) + 4  # + VAL, the mix, lookahead, bound
     check_study(sc, {}, runs, seeds, force)
     from pnp_twin.studies.headroom import run_headroom
+    from pnp_twin.studies.runstore import open_store
 
     with claim_folder(out, "headroom", inputs_of(scenario, sc, policy=policy)):
-        with ray_session(workers, address) if backend == "ray" else nullcontext():
-            result = run_headroom(sc, settings, _progress)
+        with open_store(out / EVALS) as store:  # every run as it finishes: a kill resumes
+            with ray_session(workers, address) if backend == "ray" else nullcontext():
+                result = run_headroom(sc, settings, _progress, store)
         write_headroom(result, out)
     if as_json:
         typer.echo(dumps_json(result.to_json(), indent=2))

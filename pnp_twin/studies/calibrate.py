@@ -340,35 +340,40 @@ def calibrate(
         workers=workers,
         engine=engine,
     )
-    fit = Fit(problem, evaluator, progress)
-    message = optimise(fit)
-    assert fit.best is not None
-    history = list(fit.history)
-    # the file gets 4 significant digits: score exactly those values (journalled, so cheap)
-    rounded = tuple(float(f"{v:.4g}") for v in fit.best.x)
-    best = fit.best if rounded == fit.best.x else fit.evaluate(rounded)
-    log.info("fit: %s; best objective %.4g at %s", message, best.objective, best.x)
-    fit.tracking = False
-    prof = profiles(fit, best.x)
-    pairs = pair_profiles(fit, best.x)
-    curve = curves(fit, best.x)
-    return Calibration(
-        problem=problem,
-        best=best,
-        history=history,
-        profiles=prof,
-        pairs=pairs,
-        curves=curve,
-        wall_time=time.perf_counter() - t0,
-        simulated=evaluator.simulated,
-        replayed=evaluator.replayed,
-        message=message,
-        extra={
-            "engine": engine,
-            "engines_ran": sorted(evaluator.engines_ran),
-            **({"lower": (fit.lower.x, fit.lower.objective)} if fit.lower is not None else {}),
-        },
-    )
+    try:
+        fit = Fit(problem, evaluator, progress)
+        message = optimise(fit)
+        assert fit.best is not None
+        history = list(fit.history)
+        # the file gets 4 significant digits: score exactly those values (journalled, so cheap)
+        rounded = tuple(float(f"{v:.4g}") for v in fit.best.x)
+        best = fit.best if rounded == fit.best.x else fit.evaluate(rounded)
+        log.info("fit: %s; best objective %.4g at %s", message, best.objective, best.x)
+        fit.tracking = False
+        prof = profiles(fit, best.x)
+        pairs = pair_profiles(fit, best.x)
+        curve = curves(fit, best.x)
+        return Calibration(
+            problem=problem,
+            best=best,
+            history=history,
+            profiles=prof,
+            pairs=pairs,
+            curves=curve,
+            wall_time=time.perf_counter() - t0,
+            simulated=evaluator.simulated,
+            replayed=evaluator.replayed,
+            message=message,
+            extra={
+                "engine": engine,
+                "engines_ran": sorted(evaluator.engines_ran),
+                **({"lower": (fit.lower.x, fit.lower.objective)} if fit.lower is not None else {}),
+            },
+        )
+    finally:
+        # closed now, not when a traceback lets it go: a failed --fresh fit puts the old
+        # evals/ back, and a late close would touch the store's files by their names
+        evaluator.store.close()
 
 
 CHI2_1_95 = 3.841458820694124  # the 95 % quantile of chi-square with 1 degree of freedom

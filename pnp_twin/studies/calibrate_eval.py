@@ -6,9 +6,9 @@ replications that use common random numbers: replication k of every point, polic
 parameter vector sees the same part stream, so the objective changes smoothly with the
 parameters instead of jumping with the noise.
 
-Every run is journalled the moment it finishes, in ``DIR/evals/runs.jsonl``
-(:mod:`pnp_twin.studies.runlog`: one fsynced JSON line per run, keyed by the run's resolved
-scenario, policy, seed and KPIs), and every finished point atomically as
+Every run is stored the moment it finishes, in ``DIR/evals/runs.sqlite``
+(:mod:`pnp_twin.studies.runstore`: one committed SQLite row per run, keyed by the run's
+resolved scenario, policy, seed and KPIs), and every finished point atomically as
 ``DIR/evals/<key>.json``, where the key hashes exactly what was simulated (the point's
 resolved scenario, the policies, the seeds, the KPIs). A rerun of an interrupted fit, design
 or capacity search replays the finished points and runs without simulating them again,
@@ -20,7 +20,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +32,7 @@ from pnp_twin.parallel import pool_map
 from pnp_twin.studies.backends import Executor
 from pnp_twin.studies.execute import execute
 from pnp_twin.studies.plan import RunSpec, StudyError
-from pnp_twin.studies.runlog import RunLog
+from pnp_twin.studies.runstore import RunStore
 from pnp_twin.twin.output import write_text
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.stats import t_interval
@@ -72,6 +72,10 @@ def _run_key(scene: dict[str, Any], policy: str, seed: int, kpis: Sequence[str])
     what = {"scenario": scene, "policy": policy, "seed": seed, "kpis": list(kpis)}
     text = json.dumps(what, sort_keys=True, default=str)
     return hashlib.sha1(text.encode()).hexdigest()[:24]
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def _split(run_id: str) -> tuple[int, str, int]:
@@ -118,25 +122,25 @@ class Evaluator:
         kpis: Sequence[str],
         workers: int = 1,
         engine: str = "auto",
+        store: RunStore | None = None,
         executor: Executor | None = None,
     ) -> None:
         self.folder = Path(folder) / EVALS
-        self.folder.mkdir(parents=True, exist_ok=True)
-        for tmp in self.folder.glob(".*.tmp"):  # left by a write that was killed mid-way
-            tmp.unlink(missing_ok=True)
         self.policies = tuple(policies)
         self.seeds = tuple(seeds)
         self.kpis = tuple(dict.fromkeys([BEST_BY, *kpis]))
         self.workers = workers
-        self.executor = executor  # one pool (or Ray session) for a whole study, if given
         self.engine = engine  # twin.run.simulate's engine (same results either way)
         self.engines_ran: set[str] = set()  # the engines that simulated this evaluator's runs
         self.simulated = 0  # points simulated by this evaluator (not replayed)
         self.replayed = 0
-        self.log = RunLog(self.folder)  # every run, written as it finishes
+        # every run, committed as it finishes; a caller evaluating many batches passes one
+        # store in, so it is opened (and an older folder's log migrated) once
+        self.store = store if store is not None else RunStore(self.folder)
         self.runs_simulated = 0  # runs simulated now; the others of a simulated point came
-        self.runs_replayed = 0  # from the per-run log (a point cut short by a kill)
+        self.runs_replayed = 0  # from the runs store (a point cut short by a kill)
         self.runs_from_points = 0  # the runs of whole points read back from the journal
+        self.executor = executor  # one pool (or Ray session) for a whole study, if given
 
     def predict(
         self, scenarios: Sequence[Scenario], labels: Sequence[str]
@@ -145,10 +149,14 @@ class Evaluator:
         return [_summarise(r, self.kpis) for r in self.runs(scenarios, labels)]
 
     def runs(
-        self, scenarios: Sequence[Scenario], labels: Sequence[str]
+        self,
+        scenarios: Sequence[Scenario],
+        labels: Sequence[str],
+        points: Sequence[Mapping[str, Any]] | None = None,
     ) -> list[dict[str, list[dict[str, float]]]]:
         """Each scenario's runs ({policy: one row of KPIs per replication}), read back from
-        the journal where it holds them, else simulated and journalled."""
+        the journal where it holds them, else simulated and journalled (with its ``points``'
+        values, the configuration, in the store's ``point`` column)."""
         keys = [_key(s, self.policies, self.seeds, self.kpis) for s in scenarios]
         runs: dict[int, dict[str, list[dict[str, float]]]] = {}
         todo = []
@@ -161,7 +169,11 @@ class Evaluator:
             else:
                 todo.append(i)
         if todo:
-            fresh = self._simulate([scenarios[i] for i in todo], [labels[i] for i in todo])
+            fresh = self._simulate(
+                [scenarios[i] for i in todo],
+                [labels[i] for i in todo],
+                None if points is None else [points[i] for i in todo],
+            )
             for i, result in zip(todo, fresh, strict=True):
                 runs[i] = result
                 record = {"label": labels[i], "policies": list(self.policies), "runs": result}
@@ -172,30 +184,33 @@ class Evaluator:
     def _replay(
         self, scenarios: Sequence[Scenario], out: list[dict[str, list[Any]]]
     ) -> dict[str, str]:
-        """Fill ``out`` with the runs the per-run log holds; the others' run ids and keys."""
+        """Fill ``out`` with the runs the store holds; the others' run ids and keys."""
         keys: dict[str, str] = {}
         for i, sc in enumerate(scenarios):
             scene = sc.model_dump(mode="json", exclude={"source_dir", "name", "description"})
             for p in self.policies:
                 for k, seed in enumerate(self.seeds):
                     key = _run_key(scene, p, seed, self.kpis)
-                    stored = self.log.get(key)
-                    if stored is not None and all(c in stored for c in self.kpis):
-                        out[i][p][k] = {c: stored[c] for c in self.kpis}
+                    stored = self.store.get(key)
+                    if stored is not None and all(_number(stored.get(c)) for c in self.kpis):
+                        out[i][p][k] = {c: float(stored[c]) for c in self.kpis}
                         self.runs_replayed += 1
                     else:
                         keys[f"{i}|{p}|{k}"] = key
         return keys
 
     def _simulate(
-        self, scenarios: Sequence[Scenario], labels: Sequence[str]
+        self,
+        scenarios: Sequence[Scenario],
+        labels: Sequence[str],
+        points: Sequence[Mapping[str, Any]] | None = None,
     ) -> list[dict[str, list[dict[str, float]]]]:
-        """Each scenario's runs: those in the per-run log read back, the others simulated
-        and logged one by one as they finish."""
+        """Each scenario's runs: those in the store read back, the others simulated and
+        stored one by one as they finish."""
         out: list[dict[str, list[Any]]] = [
             {p: [None] * len(self.seeds) for p in self.policies} for _ in scenarios
         ]
-        keys = self._replay(scenarios, out)  # run_id -> the per-run log's key, of runs to do
+        keys = self._replay(scenarios, out)  # run_id -> the store's key, of runs to do
         specs = [
             RunSpec(run_id, i, {}, p, k, self.seeds[k], scenarios[i], engine=self.engine)
             for run_id in keys
@@ -211,7 +226,11 @@ class Evaluator:
                     f"r<i>_... need robot i on the line)"
                 )
             out[i][p][k] = {c: float(row[c]) for c in self.kpis}
-            self.log.add(keys[row["run_id"]], out[i][p][k])
+            point = None if points is None else points[i]
+            self.store.add(
+                keys[row["run_id"]], out[i][p][k], label=labels[i], point=point, policy=p,
+                seed=self.seeds[k],
+            )  # fmt: skip
             self.runs_simulated += 1
             self.engines_ran.add(str(row.get("engine", "simpy")))
 

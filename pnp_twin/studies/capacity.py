@@ -21,7 +21,7 @@ rule meets the target); ``policies`` names the rule of each crossing. With G fal
 flow for every rule these are the largest of each rule's own crossings.
 
 Every run is journalled in ``DIR/evals/`` the moment it finishes (as calibrate does: the
-per-run log of :mod:`pnp_twin.studies.runlog`, and each finished flow keyed by the
+runs store of :mod:`pnp_twin.studies.runstore`, and each finished flow keyed by the
 scenario, rules and seeds), so a killed search resumes without running a finished run again,
 and asking again with another target or confidence replays the flows it needs and
 simulates only new ones. ``DIR/capacity.json`` holds the
@@ -44,10 +44,11 @@ from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.backends import Executor
-from pnp_twin.studies.calibrate_eval import Evaluator
+from pnp_twin.studies.calibrate_eval import EVALS, Evaluator
 from pnp_twin.studies.design_text import choice_text
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import StudyError
+from pnp_twin.studies.runstore import RunStore
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.studies.sizing import selected_confidence
 from pnp_twin.studies.vary import parse_vary
@@ -348,6 +349,7 @@ def run_capacity(
     first = _round(start if start is not None else scenario.feeder.rate)
     found: list[dict[str, Any]] = []
     counts = {"runs_simulated": 0, "runs_replayed": 0}
+    store = RunStore(Path(out) / EVALS)  # one store for every round: opened once
     with contextlib.ExitStack() as stack:
         if executor is None:
             executor = stack.enter_context(Executor("local", workers))
@@ -357,7 +359,7 @@ def run_capacity(
             n, tried = first_n, []
             while True:
                 seeds = replication_seeds(scenario.seed, n)
-                ev = Evaluator(out, rules, seeds, kept, workers, engine, executor)
+                ev = Evaluator(out, rules, seeds, kept, workers, engine, store, executor)
                 one = _search(sc, ev, values, name, first, (target, confidence, kpi), progress)
                 counts["runs_simulated"] += ev.runs_simulated
                 counts["runs_replayed"] += ev.runs_replayed + ev.runs_from_points

@@ -32,7 +32,7 @@ reaches the target, *missed* when its upper bound is below it, *open* otherwise;
 open configuration could still be cheaper than the cheapest met one, the open ones that
 could are doubled in replications (up to ``most``), nowhere else. Every run is journalled
 per configuration, rule and seed under ``DIR/evals/`` the moment it finishes
-(:mod:`pnp_twin.studies.runlog`), so a killed design resumes without running a finished run
+(:mod:`pnp_twin.studies.runstore`), so a killed design resumes without running a finished run
 again, and asking again with another target, confidence or cost file simulates only the
 replications the new question needs.
 """
@@ -49,7 +49,8 @@ from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.backends import Executor
-from pnp_twin.studies.calibrate_eval import Evaluator
+from pnp_twin.studies.calibrate_eval import EVALS, Evaluator
+from pnp_twin.studies.design_answer import answered, question_key
 from pnp_twin.studies.design_conditions import conditions_of, is_condition, parse_across
 from pnp_twin.studies.design_config import Cell, Config, paired_lost_difference, payback
 from pnp_twin.studies.design_text import design_text, line_notes
@@ -63,6 +64,7 @@ from pnp_twin.studies.prices import (
     robot_prices,
     running_per_part,
 )
+from pnp_twin.studies.runstore import RunStore
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.studies.vary import Continuous, parse_vary, round_value
 from pnp_twin.twin.loader import ScenarioError, load_scenario, with_overrides
@@ -230,12 +232,31 @@ def run_design(
     t0 = time.perf_counter()
     box = {p: r for p, r in grid.items() if isinstance(r, Continuous)}
     rules = list(policies or [scenario.policy])
+    asked = {"target": target, "confidence": confidence, "vary": grid, "first": first}
+    asked |= {"most": most, "trials": trials}
+    if across:  # conditions and today's line are part of the question (absent: as before)
+        asked["across"] = conditions
+    if baseline is not None:
+        asked["baseline"] = baseline.model_dump(mode="json")
+    question = question_key(scenario, asked, rules, costs, kpi)
+    done = answered(Path(out) / SUMMARY_FILE, question)  # the same question, answered before
+    if done is not None:
+        done |= {"simulated": 0, "replayed": done["runs"], "command": command}
+        done |= {"runs_simulated": 0, "runs_replayed": done["runs"]}
+        done["wall_time"] = time.perf_counter() - t0
+        write_json(done, Path(out) / SUMMARY_FILE, keep_nan=True)
+        return done
     groups: list[tuple[dict[str, Any], str]] = [(v, rule) for v in combos for rule in rules]
     k = len(groups) * (trials if box else 1)
     level = 1.0 - (1.0 - confidence) / (k * looks(first, most) * len(conditions))
     seeds = replication_seeds(scenario.seed, most)
     counts = {"simulated": 0, "replayed": 0, "runs_simulated": 0, "runs_replayed": 0}
     configs: list[Config] = []
+    store = RunStore(Path(out) / EVALS)  # one store for every batch: opened once
+    known: dict[tuple[Any, ...], Config] = {}  # (rule, values): found at once, not searched
+    met_cost: dict[Config, float] = {}  # each met configuration's total cost
+    changed: set[Config] = set()  # configurations with new runs since best_met() looked
+    unknown: set[Config] = set()  # met configurations whose total cost is NaN
     # the KPIs each run keeps (part of its journal key: G's runs serve G and, on a line
     # without kinds, the value rate; another figure's are its own)
     kept = ["part_flow"] + ([] if kpi.column == "gripping_rate" else [kpi.column])
@@ -245,15 +266,22 @@ def run_design(
 
     def config(values: dict[str, Any], rule: str) -> Config:
         values = {p: values[p] for p in grid}  # the order the fields were given in
-        for c in configs:
-            if c.policy == rule and c.values == values:
-                return c
+        try:
+            found = known.get((rule, *values.items()))
+        except TypeError:  # a value that is a list: searched
+            found = next((c for c in configs if c.policy == rule and c.values == values), None)
+        if found is not None:
+            return found
         try:
             sc = with_overrides(scenario, values) if values else scenario
         except ScenarioError as e:
             raise StudyError(f"--vary {values}: {e}") from None
         c = Config(values, rule, cells(sc), capital(costs, sc), robot_prices(costs, sc))
         configs.append(c)
+        try:
+            known[(rule, *values.items())] = c
+        except TypeError:
+            pass
         return c
 
     def extend(todo: list[Config], n: int) -> None:
@@ -269,9 +297,16 @@ def run_design(
                     if len(c.g) == rep
                     for cell in c.cells
                 ]
-                ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine, executor)
+                ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine, store, executor)
                 lines = [for_replication(cell.scenario, rep) for cell in need]  # trace k in rep k
-                rows = ev.runs(lines, names)
+                points = [
+                    {**c.values, **cell.condition}
+                    for c in mine
+                    if len(c.g) == rep
+                    for cell in c.cells
+                ]
+                rows = ev.runs(lines, names, points)
+                changed.update(c for c in mine if len(c.g) == rep)
                 for key in counts:
                     counts[key] += getattr(ev, key)
                 counts["runs_replayed"] += ev.runs_from_points
@@ -283,8 +318,19 @@ def run_design(
             progress(sum(len(c.g) for c in configs), k * most)
 
     def best_met() -> float:
-        met = [c for c in configs if _state(c, level, target) == "met"]
-        return min((c.capital + c.lost_cost(costs) for c in met), default=math.inf)
+        """The cheapest met configuration's total cost; only configurations with new runs
+        are looked at again (looking at all at every point made a design quadratic)."""
+        for c in changed:
+            met_cost.pop(c, None)
+            unknown.discard(c)
+            if _state(c, level, target) == "met":
+                met_cost[c] = c.capital + c.lost_cost(costs)
+                if math.isnan(met_cost[c]):
+                    unknown.add(c)
+        changed.clear()
+        if unknown:  # a NaN cost: the minimum then depends on the order, the configurations'
+            return min((met_cost[c] for c in configs if c in met_cost), default=math.inf)
+        return min(met_cost.values(), default=math.inf)
 
     def decide(c: Config) -> None:
         """Replications for one point, doubled while it is open and could be the cheapest."""
@@ -370,6 +416,7 @@ def run_design(
         "scenario_chosen": chosen.scenario.model_dump(mode="json") if chosen else None,
         "scenario_name": scenario.name,
         "command": command,
+        "question": question,  # design_answer: the same question asked again is read back
     }
     if baseline is not None and chosen is not None:
         base = Config({}, baseline.policy, cells(baseline), 0.0)

@@ -29,12 +29,18 @@ class Cell:
         self.g: list[float] = []  # the gripping rate per replication (the lost parts' cost)
         self.y: list[float] = []  # the figure the target is on (--kpi; G by default)
         self.flow: list[float] = []
+        self._bounds: dict[tuple[float, int], tuple[float, float, float]] = {}
 
     def bounds(self, level: float) -> tuple[float, float, float]:
-        mean, low, high = t_interval(self.y, level)
-        low = max(low, 0.0) if math.isfinite(low) else 0.0
-        high = min(high, 100.0) if math.isfinite(high) else 100.0
-        return mean, low, high
+        # kept per count of runs (runs are only ever appended): a design asks every
+        # configuration's bounds at each point, thousands of times over
+        key = (level, len(self.y))
+        if key not in self._bounds:
+            mean, low, high = t_interval(self.y, level)
+            low = max(low, 0.0) if math.isfinite(low) else 0.0
+            high = min(high, 100.0) if math.isfinite(high) else 100.0
+            self._bounds[key] = mean, low, high
+        return self._bounds[key]
 
     def lost_per_s(self) -> float:
         """Parts lost per second, from the mean flow and the mean G."""

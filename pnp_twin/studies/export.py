@@ -6,6 +6,11 @@ them, one sheet each, with the unit of every column in its header, e.g.
 One unit convention throughout: the gripping rate, efficiency, utilisation and every other
 time share are percentages (the folder stores the shares as fractions; they are scaled by
 100 here and say so with ``(%)``). Nothing is simulated.
+
+A folder whose runs are in a runs store (``DIR/evals/runs.sqlite``: ``design``, ``capacity``,
+``calibrate``, ``headroom``) gets a ``runs`` sheet too, one row per stored run (its key,
+label, varied values, policy, seed and KPIs); such a folder without ``meta.json`` is
+exported as that one sheet.
 """
 
 from __future__ import annotations
@@ -19,7 +24,9 @@ from typing import Any
 import pandas as pd
 from pydantic import BaseModel
 
+from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.plan import StudyError
+from pnp_twin.studies.runstore import STORE_FILE, store_rows
 from pnp_twin.twin.output import atomic_path
 from pnp_twin.twin.scenario import Scenario
 
@@ -125,13 +132,16 @@ def read_sheet(folder: Path, stem: str) -> pd.DataFrame | None:
 def export_xlsx(folder: Path | str, out: Path | str) -> dict[str, Any]:
     """Write the study in ``folder`` to the workbook ``out``; the sheets and their rows."""
     folder, out = Path(folder), Path(out)
-    if not (folder / "meta.json").is_file():
+    stored = (folder / EVALS / STORE_FILE).is_file()
+    if not (folder / "meta.json").is_file() and not stored:
         raise StudyError(f"{folder}: no meta.json, so not a study folder (see pnp-twin sweep)")
     if out.suffix.lower() != ".xlsx":
         raise StudyError(f"--xlsx {out}: give a file name ending in .xlsx")
     tables = {s: t for s in SHEETS if (t := read_sheet(folder, s)) is not None}
-    if "summary" not in tables:
+    if "summary" not in tables and not stored:
         raise StudyError(f"{folder}: summary.csv is missing; finish the study first")
+    if stored:
+        tables["runs"] = pd.DataFrame(store_rows(folder / EVALS))
     try:
         meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):

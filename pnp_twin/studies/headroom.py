@@ -18,6 +18,10 @@ sees the same part stream), it measures
 Each with its gripping rate and 95 % t-interval, and the paired difference to the best
 rule with its 95 % t-interval (the per-seed differences under common random numbers).
 :func:`answer` says it in one sentence, in points and in parts per hour.
+
+Given a runs store (:mod:`pnp_twin.studies.headroom_runs`), every run is stored the moment it
+finishes and read back instead of simulated when asked again, so a killed study resumes with
+the results of an uninterrupted one.
 """
 
 from __future__ import annotations
@@ -32,7 +36,9 @@ import numpy as np
 
 from pnp_twin.policies.registry import make_policy
 from pnp_twin.policies.rules import NAMED_RULES, RULES
+from pnp_twin.studies.headroom_runs import One, from_row, run_key, scene, to_row
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
+from pnp_twin.studies.runstore import RunStore
 from pnp_twin.twin.run import simulate
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.stats import percent_interval, t_interval
@@ -199,7 +205,6 @@ def _check_static_mix(mix: str, n: int) -> None:
 
 
 Job = tuple[Scenario, str, int, str, KpiChoice]
-One = tuple[float, float | None, float, tuple[float, str]]
 
 
 def _one(job: Job) -> One:
@@ -215,6 +220,10 @@ def _one(job: Job) -> One:
     return kpi.of(k), cpu, float(k["part_flow"]), kpi.flow(k)
 
 
+def _one_indexed(job: tuple[int, Job]) -> tuple[int, One]:
+    return job[0], _one(job[1])
+
+
 Progress = Callable[[str, int, int], None]
 
 
@@ -225,32 +234,52 @@ def _rates(
     settings: HeadroomSettings,
     progress: Progress | None = None,
     figure: list[tuple[float, str]] | None = None,
+    store: RunStore | None = None,
 ) -> tuple[list[float], float | None, float]:
     """The ``settings.kpi`` figure per seed (in ``settings.workers`` processes), mean CPU per
-    decision and mean measured part flow (and, into ``figure``, the figure's mean flow)."""
-    from pnp_twin.parallel import pool_map_ordered, ray_map_ordered
+    decision and mean measured part flow (and, into ``figure``, the figure's mean flow). Runs
+    in ``store`` are read back; the others are simulated and stored as each finishes."""
+    from pnp_twin.parallel import pool_map, ray_map
 
-    jobs = [  # seed k replays trace k of a folder of traces
-        (for_replication(scenario, k), spec, s, settings.engine, settings.kpi)
-        for k, s in enumerate(seeds)
+    lines = [for_replication(scenario, k) for k in range(len(seeds))]  # seed k: trace k
+    jobs = [
+        (line, spec, s, settings.engine, settings.kpi) for line, s in zip(lines, seeds, strict=True)
     ]
+    found: list[One | None] = [None] * len(jobs)
+    keys: list[str] = []
+    if store is not None:
+        keys = [
+            run_key(scene(line), spec, s, settings.kpi)
+            for line, s in zip(lines, seeds, strict=True)
+        ]
+        found = [from_row(store.get(key)) for key in keys]
     done = [0]
 
-    def tick(_: Any) -> None:
+    def keep(pair: tuple[int, One]) -> None:
+        i, one = pair
+        found[i] = one
+        if store is not None:
+            point = {"kpi": settings.kpi.name}
+            store.add(keys[i], to_row(one), label=spec, point=point, policy=spec, seed=seeds[i])
         done[0] += 1
         if progress is not None:
             progress(spec, done[0], len(jobs))
 
+    todo = [i for i, one in enumerate(found) if one is None]
+    done[0] = len(jobs) - len(todo)
     costly = ":" in spec or spec.strip().lower() == "lookahead"  # rules take milliseconds
-    if settings.backend == "ray":  # every run a Ray task (same seeds: the same numbers)
-        out = ray_map_ordered(_one, jobs, settings.workers, settings.address, on_result=tick)
-    elif costly and settings.workers > 1 and len(jobs) > 1:
-        out = pool_map_ordered(_one, jobs, settings.workers, on_result=tick)
+    if settings.backend == "ray" and todo:  # every run a Ray task (same seeds, same numbers)
+        ray_map(
+            _one_indexed, [(i, jobs[i]) for i in todo], keep, settings.workers, settings.address
+        )
+    elif costly and settings.workers > 1 and len(todo) > 1:
+        pool_map(_one_indexed, [(i, jobs[i]) for i in todo], keep, settings.workers)
     else:
-        out = []
-        for job in jobs:
-            out.append(_one(job))
-            tick(None)
+        for i in todo:
+            keep((i, _one(jobs[i])))
+    if not todo and progress is not None:
+        progress(spec, done[0], len(jobs))
+    out = [one for one in found if one is not None]
     cpus = [c for _, c, _, _ in out if c is not None]
     flow = float(np.mean([f for _, _, f, _ in out]))
     if figure is not None:
@@ -265,7 +294,10 @@ def line_rules(scenario: Scenario) -> list[str]:
 
 
 def search_mix(
-    scenario: Scenario, settings: HeadroomSettings, progress: Progress | None = None
+    scenario: Scenario,
+    settings: HeadroomSettings,
+    progress: Progress | None = None,
+    store: RunStore | None = None,
 ) -> str:
     """The best per-robot mix by coordinate ascent from the best uniform rule, on the
     tuning seeds (the evaluation seeds are not used to choose it)."""
@@ -276,7 +308,7 @@ def search_mix(
     def score(mix: tuple[str, ...]) -> float:
         if mix not in cache:
             spec = mix[0] if len(set(mix)) == 1 else ",".join(mix)
-            cache[mix] = float(np.mean(_rates(scenario, spec, seeds, settings)[0]))
+            cache[mix] = float(np.mean(_rates(scenario, spec, seeds, settings, store=store)[0]))
             if progress is not None:
                 progress("mix search", len(cache), 0)
         return cache[mix]
@@ -306,9 +338,12 @@ def _entry(role: str, spec: str, values: list[float], ref: list[float], confiden
 
 
 def run_headroom(
-    scenario: Scenario, settings: HeadroomSettings, progress: Progress | None = None
+    scenario: Scenario,
+    settings: HeadroomSettings,
+    progress: Progress | None = None,
+    store: RunStore | None = None,
 ) -> Headroom:
-    """Run the study (see the module docstring)."""
+    """Run the study (see the module docstring), through ``store`` when given."""
     check_policies(scenario, settings)
     seeds = settings.seed_list
     c = settings.confidence
@@ -318,23 +353,23 @@ def run_headroom(
     tried = line_rules(scenario)
     for rule in tried:
         got: list[tuple[float, str]] = []
-        raw[rule], _, flows[rule] = _rates(scenario, rule, seeds, settings, progress, got)
+        raw[rule], _, flows[rule] = _rates(scenario, rule, seeds, settings, progress, got, store)
         figure[rule] = got[0]
     best = max(tried, key=lambda r: (float(np.mean(raw[r])), -tried.index(r)))
     ref = raw[best]
     rules = [_entry("rule", r, raw[r], ref, c) for r in tried]
     best_rule = next(e for e in rules if e.policy == best)
-    mix = settings.mix or search_mix(scenario, settings, progress)
-    mix_values = raw.get(mix) or _rates(scenario, mix, seeds, settings, progress)[0]
+    mix = settings.mix or search_mix(scenario, settings, progress, store)
+    mix_values = raw.get(mix) or _rates(scenario, mix, seeds, settings, progress, store=store)[0]
     best_mix = _entry("best_mix", mix, mix_values, ref, c)
     policies = []
     for spec in settings.policies:
-        values, cpu, _ = _rates(scenario, spec, seeds, settings, progress)
+        values, cpu, _ = _rates(scenario, spec, seeds, settings, progress, store=store)
         policies.append(_entry("policy", spec, values, ref, c))
         policies[-1].cpu_ms_per_decision = cpu
     found = {}
     for role, spec in (("lookahead", settings.lookahead), ("bound", settings.bound)):
-        values, cpu, _ = _rates(scenario, spec, seeds, settings, progress)
+        values, cpu, _ = _rates(scenario, spec, seeds, settings, progress, store=store)
         name = str(getattr(make_policy(spec), "name", spec))  # lookahead: K=16,H=1,base=auto
         found[role] = _entry(role, name, values, ref, c)
         found[role].cpu_ms_per_decision = cpu

@@ -1,29 +1,30 @@
 """The resume journal of a study folder.
 
-Finished runs are journaled by the coordinating process as results arrive, as JSON lines
-appended to segment files ``DIR/runs/NNNNNN.jsonl`` (one segment per session, never
-appended to by another): a row that comes after a quiet half second is written and fsynced
-at once; rows that come faster are buffered and written together by a timer at most half a
-second after the first of them (and always before the tables are built, when the session
-closes, on Ctrl-C, and before a fresh start deletes the study it replaced), so an
-interrupted study (Ctrl-C, a killed process) loses at most the runs of its last half second.
+Finished runs are journaled by the coordinating process as results arrive, one row each in
+the folder's runs store ``DIR/runs/runs.sqlite`` (:mod:`pnp_twin.studies.runstore`: SQLite
+in WAL mode, keyed by the run id, each row committed on its own before :meth:`Journal.record`
+returns), so an interrupted study (Ctrl-C, a killed process) loses no finished run. Rows are
+fsynced at most half a second apart (the first commit half a second after the last fsync is
+fsynced), so a power cut loses at most the runs of half a second while a study of runs that
+take milliseconds does not wait for the disk at every run.
 ``DIR/study.json`` holds the study definition: re-running the same command skips finished
 runs; a different definition in the same folder is refused (naming the fields that changed)
 unless the caller asks for a fresh start. Only the replications may change: earlier runs
 are kept and new ones added (their seeds do not depend on the count, so common random numbers
-hold). Folders written before segments (one ``DIR/runs/<run_id>.json`` per run) are read as
-they are.
+hold). Folders journaled by earlier versions (``DIR/runs/<run_id>.json`` per run, or segment
+files ``DIR/runs/NNNNNN.jsonl``) are migrated on first resume
+(:mod:`pnp_twin.studies.journal_legacy`: imported in one transaction, each file then renamed
+``<name>.migrated``).
 
 While a journal is open it holds the folder's lock (:mod:`pnp_twin.studies.lock`), so a
 second process cannot write into the same folder. A fresh start moves the old study aside
 into ``DIR/.replaced/`` and deletes it only once the new study has journaled its first
 run; if the new one fails before that, the old study is put back.
 
-Damaged lines: a line that is not readable JSON (a write cut short by a kill leaves a last
-line without its newline) is dropped from its segment and the run done again (a warning is
-logged); a readable row whose values are impossible (an edited line: G = 1234.5, a negative
-count, another run's seed) is refused with one line naming the file, the line and the field.
-A ``study.json`` that cannot be read is refused with one line.
+Damaged rows: a stored row whose values are impossible (an edited row: G = 1234.5, a negative
+count, another run's seed) is refused with one line naming the store, the run and the field;
+a row that cannot be read at all is left out (a warning) and its run done again. A
+``study.json`` that cannot be read is refused with one line.
 """
 
 from __future__ import annotations
@@ -31,20 +32,24 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
 import re
 import shutil
-import threading
-import time
 from collections.abc import Iterable, Mapping
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 from pnp_twin.studies.execute import cell
+from pnp_twin.studies.journal_legacy import (
+    legacy_files,
+    legacy_ids,
+    mark_migrated,
+    read_legacy_runs,
+)
 from pnp_twin.studies.lock import StudyLock
 from pnp_twin.studies.plan import RunSpec, StudyError
-from pnp_twin.twin.output import atomic_path, dumps_json, remove_temporaries, write_json
+from pnp_twin.studies.runstore import RunStore, stored_keys
+from pnp_twin.twin.output import dumps_json, remove_temporaries, write_json
 
 log = logging.getLogger(__name__)
 
@@ -74,9 +79,7 @@ NUMBERS = re.compile(
     r"|cycle_time_\w+|r\d+_\w+"
 )
 TEXT_FIELDS = ("scenario", "termination")
-SEGMENT = re.compile(r"\d{6}\.jsonl")  # runs/000001.jsonl, one per session
-FLUSH_SECONDS = 0.5  # a batch of rows is written and fsynced at most this long after its first
-FLUSH_ROWS = 1000  # ... or once it holds this many rows
+SYNC_SECONDS = 0.5  # rows are fsynced at most this long apart (each committed at once)
 
 
 def _show(value: Any, width: int = 40) -> str:
@@ -168,13 +171,8 @@ class Journal:
         self.folder = Path(folder)
         self.runs = self.folder / "runs"
         self.replaced = self.folder / REPLACED
-        self._found: dict[str, tuple[Any, str]] | None = None  # run_id -> (row, where)
-        self._pending: list[str] = []  # JSON lines recorded, not yet written
-        self._flushed_at = -math.inf  # monotonic time of the last write
-        self._guard = threading.RLock()  # the timer's flush and record() share the buffer
-        self._timer: threading.Timer | None = None  # writes a batch FLUSH_SECONDS after it starts
-        self._segment: Path | None = None  # this session's segment, once it has one
-        self._lines = 0  # lines written to it
+        self._store: RunStore | None = None  # opened (and an older folder migrated) on first use
+        self._found: dict[str, dict[str, Any]] | None = None  # run_id -> row
         self.lock = StudyLock(self.folder)
         self.lock.acquire(command)
         try:
@@ -237,6 +235,7 @@ class Journal:
 
     def _move_aside(self) -> None:
         """Move the old study's outputs into .replaced/ (deleted once the new one runs)."""
+        self._close_store()
         shutil.rmtree(self.replaced, ignore_errors=True)
         present = [n for n in OUTPUTS if (self.folder / n).exists()]
         if not present:
@@ -256,10 +255,8 @@ class Journal:
             self.restore()
 
     def started(self) -> None:
-        """The new study has journaled a run: delete the study a fresh start moved aside
-        (once the run is on disk)."""
+        """The new study has journaled a run: delete the study a fresh start moved aside."""
         if self.replaced.is_dir():
-            self.flush()
             shutil.rmtree(self.replaced, ignore_errors=True)
             log.info("deleted the old study of %s", self.folder)
 
@@ -267,6 +264,7 @@ class Journal:
         """Put back the study a fresh start moved aside (the new one never ran)."""
         if not self.replaced.is_dir():
             return
+        self._close_store()
         for name in OUTPUTS:
             p = self.folder / name
             if (self.replaced / name).exists():
@@ -276,209 +274,117 @@ class Journal:
                     p.unlink()
                 (self.replaced / name).rename(p)
         shutil.rmtree(self.replaced, ignore_errors=True)
-        self._found, self._segment, self._lines = None, None, 0  # read the old runs anew
         log.info("restored the earlier study of %s", self.folder)
 
     def close(self) -> None:
-        """Write the rows still buffered and release the folder's lock."""
+        """Close the store and release the folder's lock."""
         try:
-            if self._timer is not None:
-                self._timer.cancel()
-            self.flush()
+            self._close_store()
         finally:
             self.lock.release()
 
-    # -- the runs' rows: JSON lines in segments -------------------------------------------
+    # -- the runs' rows: one committed row each in runs/runs.sqlite ----------------------
+    def _close_store(self) -> None:
+        if self._store is not None:
+            self._store.close()
+        self._store, self._found = None, None
+
     def _has_runs(self) -> bool:
-        """Whether runs/ holds any journaled run: a segment with a complete, readable row
-        (a line cut short by a kill is no run; it is dropped when read), or an older
-        folder's run file."""
-        if not self.runs.is_dir():
-            return False
-        return any(_legacy(p) for p in self.runs.iterdir()) or bool(journaled(self.runs))
+        """Whether runs/ holds any journaled run: a stored row, or a complete, readable row of
+        an earlier version's files (a line cut short by a kill is no run)."""
+        return bool(journaled(self.runs))
 
-    def _segments(self) -> list[Path]:
-        if not self.runs.is_dir():
-            return []
-        return sorted(p for p in self.runs.iterdir() if SEGMENT.fullmatch(p.name))
-
-    def _read(self) -> dict[str, tuple[Any, str]]:
-        """Every journaled row by run id (read from disk once, then kept up to date)."""
-        if self._found is not None:
-            return self._found
-        found: dict[str, tuple[Any, str]] = {}
-        if self.runs.is_dir():
-            for path in sorted(p for p in self.runs.iterdir() if _legacy(p)):
-                row = self._read_legacy(path)
-                if row is not None:
-                    found[path.stem] = (row, str(path))
-        for path in self._segments():
-            for key, row, where in self._read_segment(path):
-                found[key] = (row, where)
-        self._found = found
-        return found
-
-    def _read_legacy(self, path: Path) -> Any:
-        """A run file of a folder written before segments; None if damaged (deleted)."""
-        try:
-            return json.loads(path.read_text(encoding="utf-8"))
-        except (ValueError, UnicodeDecodeError) as e:
-            why = str(e).splitlines()[0] if str(e) else type(e).__name__
-            log.warning("%s: is damaged (%s); running it again", path, why)
-            path.unlink(missing_ok=True)
-            return None
-
-    def _read_segment(self, path: Path) -> list[tuple[str, Any, str]]:
-        """(run id, row, "FILE line N") of each line of a segment. Lines that are not
-        readable JSON (a write cut short) are dropped from the file, their runs redone; a
-        readable line that is not a run's row is refused."""
-        data = path.read_bytes()
-        lines = data.split(b"\n")
-        out, kept, damaged = [], [], 0
-        for n, raw in enumerate(lines, start=1):
-            if not raw.strip():
-                continue
-            where = f"{path} line {n}"
+    def _open_store(self) -> RunStore:
+        """The store, an earlier version's files imported into it on first use."""
+        if self._store is None:
+            self.runs.mkdir(parents=True, exist_ok=True)
+            store = RunStore(self.runs, sync_every=SYNC_SECONDS)
             try:
-                if n == len(lines):  # no newline after it: its write was cut short
-                    raise ValueError("the line was cut short")
-                row = json.loads(raw.decode("utf-8"))
-            except (ValueError, UnicodeDecodeError) as e:
-                why = str(e).splitlines()[0] if str(e) else type(e).__name__
-                log.warning("%s: is damaged (%s); running it again", where, why)
-                damaged += 1
-                continue
-            kept.append(raw)
-            if not isinstance(row, dict) or not isinstance(row.get("run_id"), str):
-                what = "a row without a run_id" if isinstance(row, dict) else type(row).__name__
-                raise StudyError(
-                    f"{where}: holds {what}, not a run's row; delete that line to run it again"
-                )
-            out.append((row["run_id"], row, where))
-        if damaged:  # the file without its damaged lines (atomically: a kill keeps either)
-            text = b"".join(line + b"\n" for line in kept)
-            with atomic_path(path) as tmp:
-                tmp.write_bytes(text)
-            if kept:  # the line numbers now count the kept lines
-                return self._read_segment(path)
-        return out
+                self._migrate(store)
+            except BaseException:
+                store.close()
+                raise
+            self._store = store
+        return self._store
+
+    def _migrate(self, store: RunStore) -> None:
+        files = legacy_files(self.runs)
+        if not files:
+            return
+        found = read_legacy_runs(self.runs)
+        store.add_many([(run_id, row, _about(row)) for run_id, row in found.items()])
+        mark_migrated(files)
+        log.info("%s: migrated %d runs into %s", self.runs, len(found), store.path)
+
+    def _read(self) -> dict[str, dict[str, Any]]:
+        """Every journaled row by run id (read from the store once, then kept up to date)."""
+        if self._found is None:
+            store = self._open_store()
+            found = {}
+            for run_id, row in store.items():
+                if row is None:
+                    log.warning("%s: run %s is damaged; running it again", store.path, run_id)
+                else:
+                    found[run_id] = row
+            self._found = found
+        return self._found
 
     def flush(self) -> None:
-        """Append the buffered rows to this session's segment and fsync it."""
-        with self._guard:
-            self._timer = None
-            if self._pending:
-                self._write_pending()
-            self._flushed_at = time.monotonic()
-
-    def _write_pending(self) -> None:
-        segment = self._session_segment()
-        created = not segment.exists()
-        text = "".join(self._pending).encode("utf-8")
-        fd = os.open(segment, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o666)
-        try:
-            os.write(fd, text)
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        if created:
-            _fsync_dir(self.runs)  # the segment's name is on disk too
-        self._lines += len(self._pending)
-        self._pending.clear()
-
-    def _session_segment(self) -> Path:
-        """This session's segment: the next number after those in runs/."""
-        if self._segment is None:
-            numbers = [int(p.name[:6]) for p in self._segments()]
-            self._segment = self.runs / f"{max(numbers, default=0) + 1:06d}.jsonl"
-        return self._segment
+        """Nothing to write: each row is committed when it is recorded (kept for callers
+        that make sure the rows are on disk before building the tables)."""
 
     def done(self) -> set[str]:
         """Ids of the journaled runs (not yet checked)."""
         return set(self._read())
 
     def record(self, row: Mapping[str, Any]) -> None:
-        """Journal one finished run (NaN kept so the row reads back exactly); written with
-        its batch (see the module docstring)."""
-        line = _dumps_row(row)
+        """Journal one finished run (NaN kept so the row reads back exactly), committed
+        before this returns."""
+        clean = json.loads(_dumps_row(row))  # plain Python values, as they read back
         found = self._read()
-        with self._guard:
-            self._pending.append(line)
-            where = f"{self._session_segment()} line {self._lines + len(self._pending)}"
-            found[str(row["run_id"])] = (json.loads(line), where)
-            quiet = time.monotonic() - self._flushed_at >= FLUSH_SECONDS
-            if quiet or len(self._pending) >= FLUSH_ROWS:
-                if self._timer is not None:
-                    self._timer.cancel()
-                self.flush()
-            elif self._timer is None:
-                self._timer = threading.Timer(FLUSH_SECONDS, self.flush)
-                self._timer.daemon = True
-                self._timer.start()
+        self._open_store().add_many([(str(clean["run_id"]), clean, _about(clean))])
+        found[str(clean["run_id"])] = clean
 
     def load(self, spec: RunSpec) -> dict[str, Any] | None:
-        """``spec``'s journaled row, checked; None if not run yet (or its line was damaged)."""
-        entry = self._read().get(spec.run_id)
-        if entry is None:
+        """``spec``'s journaled row, checked; None if not run yet (or its row was damaged)."""
+        row = self._read().get(spec.run_id)
+        if row is None:
             return None
-        row, where = entry
         problem = row_problem(row, spec)
         if problem:
-            what = "that line" if " line " in where else "the file"
+            path = self._open_store().path
             raise StudyError(
-                f"{where} (run {spec.run_id}): {problem}; delete {what} to run it again"
+                f"{path} (run {spec.run_id}): {problem}; delete that run to run it again: "
+                f"sqlite3 {path} \"DELETE FROM runs WHERE key = '{spec.run_id}'\""
             )
         return dict(row)
 
     def rows(self, specs: Iterable[RunSpec]) -> list[dict[str, Any] | None]:
-        """The checked row of each spec (None where not run yet); buffered rows are written
-        first."""
-        self.flush()
+        """The checked row of each spec (None where not run yet)."""
         return [self.load(s) for s in specs]
 
 
-def _legacy(path: Path) -> bool:
-    """A run file of a folder journaled before segments (``runs/<run_id>.json``)."""
-    return path.suffix == ".json" and not path.name.startswith(".")
-
-
-def _fsync_dir(folder: Path) -> None:
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass  # some file systems cannot fsync a folder; the data itself is synced
-    finally:
-        os.close(fd)
+def _about(row: Mapping[str, Any]) -> dict[str, Any]:
+    """The store's readable columns of a study row: the grid values, policy and seed."""
+    ids = ("run_id", "point", "policy", "replication", "seed")
+    point = {k: v for k, v in row.items() if "." in str(k) and k not in ids}
+    return {
+        "label": row.get("run_id"),
+        "point": {"point": row.get("point"), **point},
+        "policy": row.get("policy"),
+        "seed": row.get("seed") if isinstance(row.get("seed"), int) else None,
+    }
 
 
 def _dumps_row(row: Mapping[str, Any]) -> str:
-    """One JSON line (NaN as ``NaN``); plain rows skip the numpy / pandas conversion."""
+    """One JSON text (NaN as ``NaN``); plain rows skip the numpy / pandas conversion."""
     try:
-        text = json.dumps(row, allow_nan=True, separators=(",", ":"))
+        return json.dumps(row, allow_nan=True, separators=(",", ":"))
     except TypeError:
-        text = dumps_json(row, keep_nan=True)
-    return text + "\n"
+        return dumps_json(row, keep_nan=True)
 
 
 def journaled(runs: Path) -> set[str]:
-    """Run ids journaled in a ``runs/`` folder (complete lines of its segments, and an older
-    folder's run files), without checking or changing anything: for watching a study."""
-    ids: set[str] = set()
-    if not runs.is_dir():
-        return ids
-    for path in runs.iterdir():
-        if _legacy(path):
-            ids.add(path.stem)
-        elif SEGMENT.fullmatch(path.name):
-            for raw in path.read_bytes().split(b"\n")[:-1]:
-                try:
-                    row = json.loads(raw.decode("utf-8"))
-                except (ValueError, UnicodeDecodeError):
-                    continue
-                if isinstance(row, dict) and isinstance(row.get("run_id"), str):
-                    ids.add(row["run_id"])
-    return ids
+    """Run ids journaled in a ``runs/`` folder (the store's rows, and an earlier version's
+    complete rows), without checking or changing anything: for watching a study."""
+    return stored_keys(runs) | legacy_ids(runs)

@@ -1,12 +1,14 @@
-"""``design`` and ``capacity`` journal each run the moment it finishes (``evals/runs.jsonl``),
+"""``design`` and ``capacity`` store each run the moment it finishes (``evals/runs.sqlite``),
 so an interrupted study resumes without running a finished run again: an exception half-way
-through a batch, a line cut short, and a SIGKILLed ``design`` and ``capacity``."""
+through a batch, an older folder's log (a line cut short included) migrated, and a SIGKILLed
+``design`` and ``capacity``."""
 
 from __future__ import annotations
 
 import json
 import os
 import signal
+import sqlite3
 import subprocess
 import sys
 import time
@@ -18,7 +20,7 @@ from typer.testing import CliRunner
 from pnp_twin.cli import app
 from pnp_twin.studies import calibrate_eval
 from pnp_twin.studies.calibrate_eval import EVALS, Evaluator
-from pnp_twin.studies.runlog import RUNS_FILE, journalled
+from pnp_twin.studies.runstore import STORE_FILE, stored_runs
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.twin.loader import load_scenario, with_overrides
 
@@ -35,6 +37,19 @@ CAPACITY = [
     "capacity", str(BASELINE), "--target", "85", "-p", "SD", "-p", "SPT", "-r", "3",
     "--engine", "simpy", "--no-report", *SETS,
 ]  # fmt: skip
+HEADROOM = [
+    "headroom",
+    str(BASELINE),
+    "--seeds",
+    "3",
+    "--duration",
+    "30",
+    "--engine",
+    "simpy",
+    "--lookahead",
+    "lookahead:K=2,H=1,base=SD",
+    *SETS,
+]  # fmt: skip  (the mix searched on tuning seeds: ~100 runs, killed in the search)
 SEEDS = replication_seeds(5, 4)
 
 
@@ -63,29 +78,40 @@ def test_a_batch_cut_short_keeps_its_finished_runs(tmp_path, monkeypatch) -> Non
     ev = Evaluator(tmp_path / "a", ["SD", "SPT"], SEEDS, ["part_flow"], 1, "simpy")
     with pytest.raises(Stop):
         ev.runs(scenarios(), ["slow", "fast"])
-    assert journalled(tmp_path / "a" / EVALS) == 5
+    assert stored_runs(tmp_path / "a" / EVALS) == 5
     monkeypatch.setattr(calibrate_eval, "execute", real)
     again = Evaluator(tmp_path / "a", ["SD", "SPT"], SEEDS, ["part_flow"], 1, "simpy")
     resumed = again.runs(scenarios(), ["slow", "fast"])
     assert (again.runs_replayed, again.runs_simulated) == (5, 11)
     whole = Evaluator(tmp_path / "b", ["SD", "SPT"], SEEDS, ["part_flow"], 1, "simpy")
     assert resumed == whole.runs(scenarios(), ["slow", "fast"])
-    assert journalled(tmp_path / "a" / EVALS) == 16
+    assert stored_runs(tmp_path / "a" / EVALS) == 16
 
 
-def test_a_line_cut_short_is_cut_off_and_its_run_done_again(tmp_path, caplog) -> None:
+def test_an_older_log_is_migrated_once_and_its_cut_line_run_again(tmp_path, caplog) -> None:
+    """An earlier version's ``runs.jsonl`` (its last line cut short by a kill) is imported
+    into the store on first open and renamed: its whole run is replayed, the cut one run."""
     ev = Evaluator(tmp_path, ["SD"], SEEDS[:2], ["part_flow"], 1, "simpy")
     first = ev.runs(scenarios()[:1], ["slow"])
     for point in (tmp_path / EVALS).glob("*.json"):
         point.unlink()  # as if killed before the point's file was written
-    log = tmp_path / EVALS / RUNS_FILE
-    whole = log.read_bytes()
-    log.write_bytes(whole[: whole.index(b"\n") + 1] + whole[whole.index(b"\n") + 1 :][:30])
+    db = sqlite3.connect(tmp_path / EVALS / STORE_FILE)
+    rows = db.execute("SELECT key, kpis FROM runs ORDER BY rowid").fetchall()
+    db.close()
+    ev.store.close()
+    for suffix in ("", "-wal", "-shm"):
+        (tmp_path / EVALS / (STORE_FILE + suffix)).unlink(missing_ok=True)
+    lines = [f'{{"key": "{k}", "row": {v}}}\n' for k, v in rows]
+    log = tmp_path / EVALS / "runs.jsonl"
+    log.write_text(lines[0] + lines[1][:30])  # the second line's write was cut short
     again = Evaluator(tmp_path, ["SD"], SEEDS[:2], ["part_flow"], 1, "simpy")
     assert "cut short" in caplog.text
+    assert not log.exists() and (tmp_path / EVALS / "runs.jsonl.migrated").is_file()
     assert again.runs(scenarios()[:1], ["slow"]) == first
     assert (again.runs_replayed, again.runs_simulated) == (1, 1)
-    assert log.read_bytes() == whole  # the torn bytes are gone, the run written whole
+    assert stored_runs(tmp_path / EVALS) == 2
+    third = Evaluator(tmp_path, ["SD"], SEEDS[:2], ["part_flow"], 1, "simpy")
+    assert len(third.store) == 2  # the renamed log is not imported again
 
 
 def cli(args: list[str], out: Path) -> subprocess.Popen[bytes]:
@@ -102,7 +128,7 @@ def kill_after(args: list[str], out: Path, runs: int) -> int:
     study = cli(args, out)
     try:
         deadline = time.monotonic() + 120
-        while journalled(out / EVALS) < runs and study.poll() is None:
+        while stored_runs(out / EVALS) < runs and study.poll() is None:
             assert time.monotonic() < deadline
             time.sleep(0.01)
         assert study.poll() is None, "the command ended before it could be killed"
@@ -111,13 +137,13 @@ def kill_after(args: list[str], out: Path, runs: int) -> int:
     finally:
         if study.poll() is None:
             os.killpg(study.pid, signal.SIGKILL)
-    return journalled(out / EVALS)
+    return stored_runs(out / EVALS)
 
 
 @pytest.mark.parametrize(
     ("args", "answer", "runs"),
-    [(DESIGN, "design.json", 4), (CAPACITY, "capacity.json", 4)],
-    ids=["design", "capacity"],
+    [(DESIGN, "design.json", 4), (CAPACITY, "capacity.json", 4), (HEADROOM, "headroom.json", 30)],
+    ids=["design", "capacity", "headroom"],
 )
 def test_a_killed_study_resumes_without_running_a_finished_run_again(
     tmp_path, args, answer, runs
@@ -130,13 +156,23 @@ def test_a_killed_study_resumes_without_running_a_finished_run_again(
     assert before >= runs and not (out / answer).exists()
     result = CliRunner().invoke(app, [*args, "--out", str(out), "--workers", "1", "--json"])
     assert result.exit_code == 0, result.output
-    lines = (out / EVALS / RUNS_FILE).read_bytes().splitlines()
-    keys = [json.loads(line)["key"] for line in lines]
-    assert len(keys) == len(set(keys)) == journalled(reference / EVALS)  # each run ran once
+    db = sqlite3.connect(out / EVALS / STORE_FILE)
+    count, last = db.execute("SELECT count(*), max(rowid) FROM runs").fetchone()
+    db.close()
+    # each run ran once: a run stored again replaces its row under a new rowid
+    assert count == last == stored_runs(reference / EVALS)
+    assert not list((out / EVALS).glob("runs.jsonl*"))
 
-    def same(path: Path) -> dict:
-        data = json.loads(path.read_text())
-        skip = ("wall_time", "command", "simulated", "replayed", "runs_simulated", "runs_replayed")
-        return {k: v for k, v in data.items() if k not in skip}
+    def same(data: object) -> object:
+        """Without what differs between any two runs: timings, the command, the counts."""
+        skip = ("wall_time", "command", "simulated", "replayed", "cpu_ms_per_decision")
+        skip += ("runs_simulated", "runs_replayed")
+        if isinstance(data, dict):
+            return {k: same(v) for k, v in data.items() if k not in skip}
+        return [same(v) for v in data] if isinstance(data, list) else data
 
-    assert same(out / answer) == same(reference / answer)
+    assert same(json.loads((out / answer).read_text())) == same(
+        json.loads((reference / answer).read_text())
+    )
+    if (reference / "runs.csv").is_file():  # headroom: every run's figure, bit for bit
+        assert (out / "runs.csv").read_bytes() == (reference / "runs.csv").read_bytes()

@@ -1,4 +1,5 @@
-"""The resume journal: round trips, damaged and edited files, definitions, fresh starts."""
+"""The resume journal: round trips, damaged and edited rows, older folders migrated,
+definitions, fresh starts."""
 
 from __future__ import annotations
 
@@ -6,7 +7,6 @@ import json
 import logging
 import math
 import os
-import time
 from pathlib import Path
 
 import pytest
@@ -64,82 +64,38 @@ def test_a_row_reads_back_exactly_nan_included(plan, tmp_path):
     j.close()
 
 
-def segments(folder: Path) -> list[Path]:
-    return sorted((folder / "runs").glob("*.jsonl"))
+def legacy_line(row: dict) -> bytes:
+    """A row as an earlier version wrote it into a segment (NaN as ``NaN``)."""
+    return (json.dumps(row, allow_nan=True, separators=(",", ":")) + "\n").encode()
 
 
-def test_rows_are_written_in_fsynced_batches_of_json_lines(plan, tmp_path, monkeypatch):
-    import pnp_twin.studies.journal as journal
-
-    synced: list[int] = []
-    real = os.fsync
-    monkeypatch.setattr(journal.os, "fsync", lambda fd: (synced.append(fd), real(fd)))
+def test_each_row_is_committed_when_it_is_recorded(plan, tmp_path):
+    """No batch, no timer: another process (a watcher, the next session after a kill) sees
+    every recorded run at once, and a run recorded again keeps its later row."""
     j = opened(tmp_path, plan)
     specs = plan.specs()
-    j.record(fake_row(specs[0]))  # the first row after a quiet spell: written at once
-    assert synced and journaled(tmp_path / "runs") == {specs[0].run_id}
-    written = len(synced)  # the segment's fsync, and its folder's for the new name
-    for spec in specs[1:3]:
-        j.record(fake_row(spec))
-    assert len(synced) == written  # the next two, in quick succession: buffered, one batch
-    assert j.load(specs[1]) is not None  # a buffered row reads back already
-    j.rows(specs)  # the tables are built from rows on disk: the batch is written first
-    assert len(synced) >= 1 and journaled(tmp_path / "runs") == {s.run_id for s in specs[:3]}
-    (segment,) = segments(tmp_path)
-    assert segment.name == "000001.jsonl" and len(segment.read_text().splitlines()) == 3
+    for n, spec in enumerate(specs[:3], start=1):
+        j.record(fake_row(spec))  # in quick succession
+        assert journaled(tmp_path / "runs") == {s.run_id for s in specs[:n]}
+    assert [p.name for p in (tmp_path / "runs").glob("runs.sqlite")] == ["runs.sqlite"]
     j.record(fake_row(specs[3]))
-    j.close()  # closing writes what is buffered
-    j = opened(tmp_path, plan)  # a new session appends to a segment of its own
+    j.close()
+    j = opened(tmp_path, plan)
     assert all(j.load(s) is not None for s in specs)
     j.record(fake_row(specs[0], wall_time=0.5))
     j.close()
-    assert [p.name for p in segments(tmp_path)] == ["000001.jsonl", "000002.jsonl"]
     j = opened(tmp_path, plan)
-    assert j.load(specs[0])["wall_time"] == 0.5  # the later line wins
+    assert j.load(specs[0])["wall_time"] == 0.5  # the later row wins
     j.close()
 
 
-def test_a_row_after_a_quiet_spell_is_written_at_once(plan, tmp_path, monkeypatch):
-    import pnp_twin.studies.journal as journal
-
-    clock = [100.0]
-    monkeypatch.setattr(journal.time, "monotonic", lambda: clock[0])
-    j = opened(tmp_path, plan)
+def test_an_older_segment_is_migrated_and_its_damaged_lines_run_again(plan, tmp_path, caplog):
+    """An earlier version's segment: a line that is not JSON and a last line cut short by a
+    kill are left out (their runs done again), the rest imported once; the file is renamed."""
     specs = plan.specs()
-    j.record(fake_row(specs[0]))  # nothing written for a while: straight to disk
-    assert journaled(tmp_path / "runs") == {specs[0].run_id}
-    clock[0] += journal.FLUSH_SECONDS
-    j.record(fake_row(specs[1]))
-    assert journaled(tmp_path / "runs") == {s.run_id for s in specs[:2]}
-    j.close()
-
-
-def test_rows_in_quick_succession_reach_the_disk_within_half_a_second(plan, tmp_path):
-    """A burst is batched, and the batch is written by a timer even if no further run
-    finishes (a slow next run must not keep a finished one in memory)."""
-    import pnp_twin.studies.journal as journal
-
-    j = opened(tmp_path, plan)
-    specs = plan.specs()
-    for spec in specs[:3]:
-        j.record(fake_row(spec))  # the first goes at once, the next two wait for the timer
-    assert journaled(tmp_path / "runs") == {specs[0].run_id}
-    deadline = time.monotonic() + journal.FLUSH_SECONDS + 2.0
-    while journaled(tmp_path / "runs") != {s.run_id for s in specs[:3]}:
-        assert time.monotonic() < deadline, "the batch was not written by its timer"
-        time.sleep(0.05)
-    j.close()
-
-
-def test_a_line_cut_short_by_a_kill_is_dropped_and_its_run_done_again(plan, tmp_path, caplog):
-    j = opened(tmp_path, plan)
-    specs = plan.specs()
-    for spec in specs[:3]:
-        j.record(fake_row(spec))
-    j.close()
-    (segment,) = segments(tmp_path)
-    text = segment.read_bytes()
-    lines = text.splitlines(keepends=True)
+    lines = [legacy_line(fake_row(s)) for s in specs[:3]]
+    opened(tmp_path, plan).close()  # the folder's study.json
+    segment = tmp_path / "runs" / "000001.jsonl"
     segment.write_bytes(lines[0] + b"{garbage\n" + lines[1] + lines[2][:40])  # killed mid-write
     with caplog.at_level(logging.WARNING):
         j = opened(tmp_path, plan)
@@ -149,11 +105,14 @@ def test_a_line_cut_short_by_a_kill_is_dropped_and_its_run_done_again(plan, tmp_
         "line 4" in caplog.text and "cut short" in caplog.text and "running it again" in caplog.text
     )
     assert "line 2" in caplog.text  # the garbage line, dropped too
-    assert segment.read_bytes() == lines[0] + lines[1]  # the damaged lines are gone for good
+    assert not segment.exists() and segment.with_name("000001.jsonl.migrated").is_file()
+    back = found[0]
+    assert back is not None and math.isnan(back.pop("cycle_time_mean"))  # NaN read back
     j.record(fake_row(specs[2]))
     j.close()
     j = opened(tmp_path, plan)
     assert [r is not None for r in j.rows(specs)] == [True, True, True, False]
+    assert journaled(tmp_path / "runs") == {s.run_id for s in specs[:3]}
     j.close()
 
 
@@ -165,7 +124,7 @@ def test_a_truncated_or_empty_run_is_run_again(plan, tmp_path, caplog, text):
     path = tmp_path / "runs" / f"{spec.run_id}.json"
     path.write_bytes(text.encode("latin-1"))
     with caplog.at_level(logging.WARNING):
-        assert j.load(spec) is None
+        assert j.load(spec) is None  # migrated on first read: the damaged file left out
     assert not path.exists()
     assert "is damaged" in caplog.text and "running it again" in caplog.text
     j.close()
@@ -192,11 +151,22 @@ def test_an_edited_run_is_refused_naming_file_and_field(plan, tmp_path, change, 
     with pytest.raises(StudyError) as e:
         j.load(spec)
     message = str(e.value)
-    assert f"000001.jsonl line 1 (run {spec.run_id})" in message and needle in message
-    assert "delete that line to run it again" in message and "\n" not in message
+    assert f"runs.sqlite (run {spec.run_id})" in message and needle in message
+    assert "delete that run to run it again" in message and "\n" not in message
+    assert f"DELETE FROM runs WHERE key = '{spec.run_id}'" in message
     j.close()
     j = opened(tmp_path, plan)  # from disk, in a later session, alike
-    with pytest.raises(StudyError, match="000001.jsonl line 1 .*delete that line"):
+    with pytest.raises(StudyError, match=r"runs.sqlite \(run .*delete that run"):
+        j.load(spec)
+    j.close()
+
+
+def test_an_edited_row_of_an_older_folder_is_refused_after_migration(plan, tmp_path):
+    spec = plan.specs()[0]
+    opened(tmp_path, plan).close()  # the folder's study.json
+    (tmp_path / "runs" / "000001.jsonl").write_bytes(legacy_line(fake_row(spec, seed=7)))
+    j = opened(tmp_path, plan)
+    with pytest.raises(StudyError, match=r"runs.sqlite \(run p000-SD-r00\): seed = 7 is not"):
         j.load(spec)
     j.close()
 
@@ -363,4 +333,20 @@ def test_a_folder_with_only_a_torn_line_opens_as_empty(plan, tmp_path):
     _torn_segment(tmp_path)
     j = opened(tmp_path, plan)
     assert j.rows(plan.specs()) == [None] * len(plan.specs())
+    j.close()
+
+
+def test_a_store_from_a_newer_version_is_refused_in_one_line(plan, tmp_path):
+    import sqlite3
+
+    j = opened(tmp_path, plan)
+    j.record(fake_row(plan.specs()[0]))
+    j.close()
+    db = sqlite3.connect(tmp_path / "runs" / "runs.sqlite")
+    db.execute("PRAGMA user_version = 99")
+    db.close()
+    j = opened(tmp_path, plan)
+    with pytest.raises(StudyError, match=r"runs.sqlite: was written by a newer pnp-twin") as e:
+        j.rows(plan.specs())
+    assert "\n" not in str(e.value)
     j.close()

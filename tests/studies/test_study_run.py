@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import signal
+import sqlite3
 from pathlib import Path
 
 import numpy as np
@@ -108,11 +109,12 @@ def test_two_workers_give_the_same_table(serial, plan, tmp_path):
 
 def test_resume_skips_finished_runs(serial, plan, tmp_path):
     run_sweep(plan, tmp_path, Options(workers=1))
-    (segment,) = (tmp_path / "runs").glob("*.jsonl")
-    lines = segment.read_text().splitlines(keepends=True)
-    segment.write_text("".join(lines[:3] + lines[9:]))  # six runs lost
+    db = sqlite3.connect(tmp_path / "runs" / "runs.sqlite")
+    with db:
+        db.execute("DELETE FROM runs WHERE rowid BETWEEN 4 AND 9")  # six runs lost
+    db.close()
     (tmp_path / "results.parquet").unlink()
-    (tmp_path / "runs" / ".000001.jsonl.0123456789ab.tmp").write_text("{")  # killed rewrite
+    (tmp_path / "runs" / ".runs.sqlite.0123456789ab.tmp").write_text("{")  # killed copy
     (tmp_path / ".results.parquet.a1b2c3d4e5f6.tmp").write_text("PAR1")  # killed final write
     seen: list[tuple[int, int]] = []
     run_sweep(plan, tmp_path, Options(workers=1, progress=lambda d, t: seen.append((d, t))))
