@@ -121,3 +121,18 @@ def test_across_a_folder_of_shift_traces_runs_each_and_says_what_the_interval_co
     assert [Path(c["feeder.trace"]).name for c in d["conditions"]] == ["a.csv", "b.csv"]
     assert "replayed as recorded" in d["text"]
     assert d["choice"] is not None
+
+
+def test_another_set_of_conditions_is_another_question(tmp_path: Path) -> None:
+    """A finished design is read back only for the same question: the conditions are part
+    of it, so other flows are searched (their runs at the shared flow from the store)."""
+    sc = load_scenario(ROOT / "scenarios" / "paper_baseline.toml", overrides=LINE)
+    ask = ["robots.count=2:4"], ["SD"], None, 0.95, 3, 6
+
+    first = run_design(sc, tmp_path / "d", 90.0, *ask, across=["feeder.rate=3,5"])
+    again = run_design(sc, tmp_path / "d", 90.0, *ask, across=["feeder.rate=3,5"])
+    other = run_design(sc, tmp_path / "d", 90.0, *ask, across=["feeder.rate=3,7"])
+    assert again["runs_simulated"] == 0 and again["question"] == first["question"]
+    assert other["question"] != first["question"]
+    assert [c["feeder.rate"] for c in other["conditions"]] == [3.0, 7.0]
+    assert 0 < other["runs_simulated"] < other["runs"]  # flow 3's runs came from the store
