@@ -403,7 +403,10 @@ def with_conditions(sc: Scenario, across: list[str]) -> Scenario:
     grid = {**(sc.sweep.grid if sc.sweep else {}), **parse_across(across, sc)}
     if any(p in (sc.sweep.grid if sc.sweep else {}) for p in parse_across(across, sc)):
         raise UserError("--across: a field already in sweep.grid; give it in one place")
-    return with_overrides(sc, {"sweep.grid": grid})
+    shifts = "feeder.trace" in grid and sc.feeder.arrival != "trace"  # each shift replayed
+    return with_overrides(
+        sc, {"sweep.grid": grid, **({"feeder.arrival": "trace"} if shifts else {})}
+    )
 
 
 def _write_choice(sizing: dict[str, Any], path: Path, sc: Scenario) -> None:
