@@ -12,9 +12,14 @@ The repository's folders install under this one name:
 - ``pnp_twin.scenarios`` and ``pnp_twin.models``: shipped scenario files and trained models.
 
 The core's entry points are re-exported here: ``from pnp_twin import load_scenario, simulate``.
+In a checkout the folders are mapped in by :mod:`pnp_twin._checkout` (no symbolic links).
 """
 
-from pnp_twin.twin import (
+from pnp_twin import _checkout
+
+_checkout.install()
+
+from pnp_twin.twin import (  # noqa: E402 (after the checkout's folders are mapped)
     Decision,
     Policy,
     RobotSpec,

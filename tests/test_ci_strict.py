@@ -167,8 +167,9 @@ def test_ci_run_is_strict_checks_the_wheel_and_times_tests_out() -> None:
     order = [
         "export CI=1",
         ".venv/bin/ruff check .",
+        ".venv/bin/python .ci/stage_tree.py",
         ".venv/bin/mypy",
-        ".venv/bin/lint-imports",
+        "(cd build/stage && ../../.venv/bin/lint-imports --config ../../pyproject.toml --no-cache)",
         "bash .ci/wheel_check",
         ".venv/bin/pytest",
     ]

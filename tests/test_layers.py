@@ -12,49 +12,58 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLDERS = ("twin", "policies", "reports", "scenarios", "models")  # linked into pnp_twin/
+FOLDERS = ("twin", "policies", "reports", "scenarios", "models")  # mapped into pnp_twin
 PACKAGES = (*FOLDERS, "pnp_twin")
 
 
-def lint_imports(root: Path) -> subprocess.CompletedProcess[str]:
+def stage(root: Path, dest: Path) -> Path:
+    """The package as installed (``.ci/stage_tree.py``), where import-linter can read it."""
+    script = root / ".ci" / "stage_tree.py"
+    subprocess.run([sys.executable, str(script), str(dest)], check=True, capture_output=True)
+    return dest
+
+
+def lint_imports(root: Path, tmp: Path) -> subprocess.CompletedProcess[str]:
     exe = Path(sys.executable).with_name("lint-imports")
+    staged = stage(root, tmp / "stage")
     return subprocess.run(
-        [str(exe), "--no-cache"],
-        cwd=root,
+        [str(exe), "--no-cache", "--config", str(root / "pyproject.toml")],
+        cwd=staged,
         capture_output=True,
         text=True,
-        env={"PYTHONPATH": str(root), "PATH": str(exe.parent)},
+        env={"PYTHONPATH": str(staged), "PATH": str(exe.parent)},
     )
 
 
 def copy_tree(dest: Path) -> Path:
-    for name in PACKAGES:  # pnp_twin's links to the folders are copied as links
+    for name in PACKAGES:
         ignore = shutil.ignore_patterns("__pycache__")
-        shutil.copytree(ROOT / name, dest / name, symlinks=True, ignore=ignore)
+        shutil.copytree(ROOT / name, dest / name, ignore=ignore)
+    shutil.copytree(ROOT / ".ci", dest / ".ci")
     shutil.copy(ROOT / "pyproject.toml", dest / "pyproject.toml")
     return dest
 
 
-def test_the_repository_keeps_its_layers() -> None:
-    out = lint_imports(ROOT)
+def test_the_repository_keeps_its_layers(tmp_path: Path) -> None:
+    out = lint_imports(ROOT, tmp_path)
     assert out.returncode == 0, out.stdout + out.stderr
     assert "0 broken" in out.stdout
 
 
 def test_a_core_module_importing_a_policy_breaks_the_contract(tmp_path: Path) -> None:
-    tree = copy_tree(tmp_path)
+    tree = copy_tree(tmp_path / "tree")
     belt = tree / "twin" / "belt.py"
     belt.write_text(belt.read_text() + "\nimport pnp_twin.policies.rules  # noqa\n")
-    out = lint_imports(tree)
+    out = lint_imports(tree, tmp_path)
     assert out.returncode != 0
     assert "pnp_twin.twin.belt -> pnp_twin.policies.rules" in out.stdout
 
 
 def test_a_policy_importing_the_cli_breaks_the_contract(tmp_path: Path) -> None:
-    tree = copy_tree(tmp_path)
+    tree = copy_tree(tmp_path / "tree")
     rules = tree / "policies" / "rules.py"
     rules.write_text(rules.read_text() + "\nimport pnp_twin.cli.app  # noqa\n")
-    out = lint_imports(tree)
+    out = lint_imports(tree, tmp_path)
     assert out.returncode != 0
     assert "pnp_twin.policies.rules -> pnp_twin.cli.app" in out.stdout
 
@@ -94,7 +103,29 @@ def test_nothing_imports_a_folder_by_its_top_level_name() -> None:
     assert found == {}
 
 
-def test_the_folders_are_linked_into_the_one_package() -> None:
-    for name in FOLDERS:
-        link = ROOT / "pnp_twin" / name
-        assert link.is_symlink() and link.resolve() == (ROOT / name).resolve(), name
+def _packages_in_checkout() -> set[str]:
+    """Every folder with an ``__init__.py``, named as the wheel installs it."""
+    out = set()
+    for folder in PACKAGES:
+        prefix = "pnp_twin" if folder == "pnp_twin" else f"pnp_twin.{folder}"
+        for init in (ROOT / folder).rglob("__init__.py"):
+            if "__pycache__" not in init.parts:
+                out.add(".".join((prefix, *init.parent.relative_to(ROOT / folder).parts)))
+    return out
+
+
+def test_every_package_folder_is_mapped_into_the_one_package() -> None:
+    """No symbolic links: pyproject lists every package and maps each folder; the wheel and
+    an editable install follow it, and so does a checkout imported from its folder."""
+    import tomllib
+
+    setuptools = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    mapping = setuptools["package-dir"]
+    assert {mapping[f"pnp_twin.{f}"] for f in FOLDERS} == set(FOLDERS)
+    assert _packages_in_checkout() == set(setuptools["packages"])
+    out = subprocess.run(
+        [sys.executable, "-c", "import pnp_twin.twin.fast, pnp_twin.policies.hdqn as h; "
+         "print(pnp_twin.twin.fast.__file__, h.__file__)"],
+        cwd=ROOT, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert str(ROOT / "twin" / "fast") in out.stdout and str(ROOT / "policies") in out.stdout
