@@ -13,6 +13,7 @@ address is checked to answer within :data:`CONNECT_TIMEOUT` before Ray is asked 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 import os
@@ -20,7 +21,7 @@ import signal
 import socket
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from functools import partial
 from typing import Any
@@ -69,29 +70,51 @@ def _init_worker(caller: int) -> None:
     threading.Thread(target=_watch_caller, args=(caller,), daemon=True).start()
 
 
-def pool_map(
-    fn: Callable[[Any], Any],
-    items: Sequence[Any],
-    on_result: Callable[[Any], None],
-    workers: int,
-    preload: Sequence[str] = (),
-) -> None:
-    """``fn`` on each item in a local process pool, results to ``on_result`` as they finish;
-    at most ``2 * workers`` items are queued at a time. Workers ignore Ctrl-C (the caller
-    cancels the queue) and the pool is shut down on any exception."""
-    # forkserver: workers fork from a clean server that has already imported ``preload``, so
-    # they start fast and never inherit the caller's threads (progress bars, Ray clients)
-    ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(list(preload))
-    pending = iter(items)
-    with ProcessPoolExecutor(
-        max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(os.getpid(),)
-    ) as pool:
+class Pool:
+    """A local process pool kept open across batches (forkserver workers that ignore
+    Ctrl-C and end with their caller); ``map`` runs one batch. Use as a context manager:
+    the pool is shut down on exit, and at once (queued work cancelled) on any exception."""
+
+    def __init__(self, workers: int, preload: Sequence[str] = ()) -> None:
+        self.workers = workers
+        self.preload = list(preload)
+        self._pool: ProcessPoolExecutor | None = None
+
+    def __enter__(self) -> Pool:
+        # forkserver: workers fork from a clean server that has already imported ``preload``,
+        # so they start fast and never inherit the caller's threads (progress bars, Ray)
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(self.preload)
+        self._pool = ProcessPoolExecutor(
+            max_workers=self.workers,
+            mp_context=ctx,
+            initializer=_init_worker,
+            initargs=(os.getpid(),),
+        )
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *rest: object) -> None:
+        if self._pool is not None:
+            if kind is None:
+                self._pool.shutdown(wait=True)
+            else:
+                self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
+
+    def map(
+        self, fn: Callable[[Any], Any], items: Sequence[Any], on_result: Callable[[Any], None]
+    ) -> None:
+        """``fn`` on each item, results to ``on_result`` as they finish; at most
+        ``2 * workers`` items are queued at a time."""
+        pool = self._pool
+        if pool is None:
+            raise RuntimeError("Pool.map outside its with-block")
+        pending = iter(items)
         running: set[Future[Any]] = set()
         try:
             for spec in pending:
                 running.add(pool.submit(fn, spec))
-                if len(running) >= 2 * workers:
+                if len(running) >= 2 * self.workers:
                     break
             while running:
                 finished, running = wait(running, return_when=FIRST_COMPLETED)
@@ -104,7 +127,21 @@ def pool_map(
             for fut in running:
                 fut.cancel()
             pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
             raise
+
+
+def pool_map(
+    fn: Callable[[Any], Any],
+    items: Sequence[Any],
+    on_result: Callable[[Any], None],
+    workers: int,
+    preload: Sequence[str] = (),
+) -> None:
+    """``fn`` on each item in a fresh local process pool (:class:`Pool`), results to
+    ``on_result`` as they finish."""
+    with Pool(workers, preload) as pool:
+        pool.map(fn, items, on_result)
 
 
 def _indexed(fn: Callable[[Any], Any], job: tuple[int, Any]) -> tuple[int, Any]:
@@ -128,6 +165,32 @@ def pool_map_ordered(
             on_result(pair[1])
 
     pool_map(partial(_indexed, fn), list(enumerate(items)), keep, workers, preload)
+    return results
+
+
+def _call_indexed(job: tuple[int, Callable[[Any], Any], Any]) -> tuple[int, Any]:
+    """A Ray task of :func:`ray_map_ordered` (Ray takes functions, not partials)."""
+    i, fn, item = job
+    return i, fn(item)
+
+
+def ray_map_ordered(
+    fn: Callable[[Any], Any],
+    items: Sequence[Any],
+    workers: int,
+    address: str | None,
+    on_result: Callable[[Any], None] | None = None,
+) -> list[Any]:
+    """:func:`ray_map` with the results returned in the order of ``items``."""
+    results: list[Any] = [None] * len(items)
+
+    def keep(pair: tuple[int, Any]) -> None:
+        results[pair[0]] = pair[1]
+        if on_result is not None:
+            on_result(pair[1])
+
+    jobs = [(i, fn, item) for i, item in enumerate(items)]
+    ray_map(_call_indexed, jobs, keep, workers, address)
     return results
 
 
@@ -160,16 +223,11 @@ def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
         ) from None
 
 
-def ray_map(
-    fn: Callable[[Any], Any],
-    items: Sequence[Any],
-    on_result: Callable[[Any], None],
-    workers: int,
-    address: str | None,
-    retries: int = 0,
-) -> None:
-    """``fn`` on each item as a Ray task (one CPU each), results to ``on_result`` as they
-    finish; on the cluster at ``address`` (or RAY_ADDRESS), else on a local Ray."""
+@contextlib.contextmanager
+def ray_session(workers: int, address: str | None) -> Iterator[Any]:
+    """Ray, connected for the length of the with-block (the cluster at ``address`` or
+    RAY_ADDRESS, else a local Ray of ``workers`` CPUs); shut down at the end if started
+    here. Every :func:`ray_map` inside it reuses the session instead of starting its own."""
     ray = import_ray()
     address = address or os.environ.get("RAY_ADDRESS") or None
     started_here = not ray.is_initialized()
@@ -193,22 +251,38 @@ def ray_map(
                 raise
             first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
             raise ParallelError(f"--address {address}: cannot connect to Ray: {first}") from None
-    log.info("ray: %s", ray.cluster_resources())
-    task = ray.remote(fn).options(num_cpus=1, max_retries=retries)
-    refs = [task.remote(item) for item in items]
     try:
-        while refs:
-            ready, refs = ray.wait(refs, num_returns=len(refs), timeout=0.2)
-            for ref in ready:
-                on_result(ray.get(ref))
-    except BaseException:
-        for ref in refs:
-            ray.cancel(ref, force=True)
-        raise
+        yield ray
     finally:
         if started_here:
             ray.shutdown()
             _restore_handlers(handlers)
+
+
+def ray_map(
+    fn: Callable[[Any], Any],
+    items: Sequence[Any],
+    on_result: Callable[[Any], None],
+    workers: int,
+    address: str | None,
+    retries: int = 0,
+) -> None:
+    """``fn`` on each item as a Ray task (one CPU each), results to ``on_result`` as they
+    finish; on the cluster at ``address`` (or RAY_ADDRESS), else on a local Ray (within a
+    :func:`ray_session`, on its session)."""
+    with ray_session(workers, address) as ray:
+        log.info("ray: %s", ray.cluster_resources())
+        task = ray.remote(fn).options(num_cpus=1, max_retries=retries)
+        refs = [task.remote(item) for item in items]
+        try:
+            while refs:
+                ready, refs = ray.wait(refs, num_returns=len(refs), timeout=0.2)
+                for ref in ready:
+                    on_result(ray.get(ref))
+        except BaseException:
+            for ref in refs:
+                ray.cancel(ref, force=True)
+            raise
 
 
 def _restore_handlers(handlers: dict[signal.Signals, Any]) -> None:

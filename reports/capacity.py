@@ -37,6 +37,27 @@ def load_capacity(folder: Path | str) -> dict[str, Any]:
     return read_json(path)
 
 
+def auto_text(c: dict[str, Any]) -> str:
+    """' The replications were chosen by -r auto: 5 → 10 → 20 until ...' (empty without)."""
+    a = c.get("auto")
+    if not a:
+        return ""
+    reached = a["reached"]
+    how = f"{100 * reached:.1f} %" if reached != float("inf") else "no promise"
+    return (
+        f" The replications were chosen by -r auto ({' → '.join(map(str, a['replications']))}),"
+        f" until the promise sat within {100 * a['gap']:g} % of the mean crossing (reached: "
+        f"{how})."
+    )
+
+
+def runs_text(c: dict[str, Any]) -> str:
+    """'120 runs simulated, 40 replayed from evals/' (older folders counted flows)."""
+    if "runs_simulated" in c:
+        return f"{c['runs_simulated']} runs simulated, {c['runs_replayed']} replayed from evals/"
+    return f"{c.get('simulated')} flows simulated, {c.get('replayed')} replayed from evals/"
+
+
 def capacity_figure(c: dict[str, Any]) -> go.Figure:
     """G against part flow (best rule at each flow) with the CI band, the target and the
     crossings."""
@@ -70,15 +91,20 @@ def capacity_figure(c: dict[str, Any]) -> go.Figure:
         annotation_text=f"target {fmt_pct(target)}",
         annotation_position="bottom left",
     )
-    crossings = (("ci_low", "promise", "solid", "left"), ("max_rate", "mean", "dot", "right"))
-    for key, label, dash, side in crossings:  # the promise's label left of its line, the
-        x = c.get(key)  # mean's right of its: close crossings do not print over each other
-        if x is not None:
+    crossings = (
+        ("ci_low", "promise", "solid", "top left"),
+        ("max_rate", "mean crosses", "dot", "top right"),
+        ("ci_high", "upper crosses", "dash", "bottom right"),
+    )
+    search = c.get("search") or {}
+    for key, label, dash, side in crossings:  # labels on alternating sides and heights, so
+        x = c.get(key)  # close crossings do not print over each other
+        if x is not None and search.get(key, "found") == "found":
             fig.add_vline(
                 x=x,
                 line={"color": "#2a9d8f", "width": 1.5, "dash": dash},
                 annotation_text=f"{label}: {x:.3g}",
-                annotation_position=f"top {side}",
+                annotation_position=side,
             )
     fig.update_xaxes(title="Part flow (parts/s)")
     fig.update_yaxes(title="Gripping rate (%)", ticksuffix=" %")
@@ -170,7 +196,7 @@ def whatif_section(c: dict[str, Any], folder: Path | str | None = None) -> Secti
     start = {"feeder.rate": float(at["rate"]), "policy": at["policy"]}
     several = len(c.get("rules") or []) > 1
     each = f"{100 * level:.4g} %" + (" per rule (Bonferroni)" if several else "")
-    panel = whatif_html(["feeder.rate"], rows, each, start, panel_id="whatif")
+    panel = whatif_html(["feeder.rate"], rows, each, start, target=float(c["target"]))
     intro = "Choose a part flow the search evaluated and a rule: the gripping rate measured "
     intro += f"there, with its interval against the target of {fmt_pct(target)} (from the "
     intro += "stored runs; nothing is simulated)."
@@ -280,11 +306,12 @@ def build_capacity_page(c: dict[str, Any], folder: Path | str | None = None) -> 
             f"Flows are found by root finding (doubling or halving from the scenario's flow, "
             f"then bisection to {100 * float(c.get('tolerance') or 0.01):g} %), not a grid; "
             f"{c['evaluated']} flows evaluated with {c['replications']} replications each "
-            f"and common random numbers."
+            f"and common random numbers.{auto_text(c)}"
         )
         + "</p></div>"
     )
     lo, hi, mid = c.get("ci_low"), c.get("ci_high"), c.get("max_rate")
+    upper_open = (c.get("search") or {}).get("ci_high") == "above"
     cards = [
         (
             "Promise",
@@ -293,7 +320,13 @@ def build_capacity_page(c: dict[str, Any], folder: Path | str | None = None) -> 
             + (f" running {c['policy']}" if c.get("policy") and lo is not None else ""),
         ),
         ("Mean crossing", "–" if mid is None else f"{mid:.3g} parts/s", "mean G = target"),
-        ("Upper crossing", "–" if hi is None else f"{hi:.3g} parts/s", "beyond: surely missed"),
+        (
+            "Upper crossing",
+            "not found" if hi is None or upper_open else f"{hi:.3g} parts/s",
+            "still reached at the highest flow tried"
+            if hi is None or upper_open
+            else f"above it: missed with {conf:g} % confidence",
+        ),
         ("Robots", str(c.get("robots")), ", ".join(c.get("rules") or [])),
     ]
     facts = [
@@ -303,8 +336,7 @@ def build_capacity_page(c: dict[str, Any], folder: Path | str | None = None) -> 
             "Runs",
             esc(
                 f"{c['replications']} replications per flow, {c.get('duration', 0):g} s each "
-                f"({c.get('warmup', 0):g} s warm-up); {c['simulated']} flows simulated, "
-                f"{c['replayed']} replayed from evals/"
+                f"({c.get('warmup', 0):g} s warm-up); {runs_text(c)}"
             ),
         ),
         ("Command", f"<code>{esc(c.get('command') or '')}</code>"),

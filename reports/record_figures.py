@@ -33,9 +33,12 @@ from pnp_twin.twin.scenario import Scenario
 
 
 def robot_count(results: pd.DataFrame) -> int:
-    """Number of robots from the r{i}_utilisation columns."""
+    """Number of robots from the r{i}_utilisation columns that hold a value in these rows
+    (a study over robot counts has r5_... columns, empty in its 4-robot rows)."""
     n = 0
     while f"r{n + 1}_utilisation" in results.columns:
+        if not results[f"r{n + 1}_utilisation"].notna().any():
+            break
         n += 1
     return n
 

@@ -4,12 +4,14 @@ key findings of a study, in plain sentences a plant engineer can forward."""
 from __future__ import annotations
 
 import math
+import typing
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from pnp_twin.reports.load import Study
+from pnp_twin.twin.scenario import Scenario
 
 # dotted scenario path -> (label, short label, unit)
 PARAMS: dict[str, tuple[str, str, str]] = {
@@ -32,9 +34,38 @@ PARAMS: dict[str, tuple[str, str, str]] = {
 }
 
 
+def _fallback(path: str) -> tuple[str, str, str]:
+    """A path PARAMS does not list: its section and field ('belt.length' -> 'Belt length';
+    a robots field without 'robots') and the unit the scenario schema gives it."""
+    *section, name = path.split(".")
+    words = [w for w in section if w != "robots"] + [name]
+    label = " ".join(words).replace("_", " ").capitalize()
+    return label, name, schema_unit(path)
+
+
+def schema_unit(path: str) -> str:
+    """The unit of a scenario field as the schema states it ('' if none or not a field)."""
+    model: Any = Scenario
+    field = None
+    for key in path.split("."):
+        fields = getattr(model, "model_fields", {})
+        if key not in fields:
+            return ""
+        field = fields[key]
+        ann = field.annotation
+        options = typing.get_args(ann) or (ann,)
+        model = next(
+            (a for a in options if isinstance(a, type) and hasattr(a, "model_fields")), None
+        )
+    extra = getattr(field, "json_schema_extra", None)
+    unit = extra.get("unit", "") if isinstance(extra, dict) else ""
+    return str(unit) if unit not in ("", "1") else ""
+
+
 def param_label(path: str, unit: bool = True) -> str:
-    """'robots.arm_speed' -> 'Arm speed (m/s)'; unknown paths get a readable fallback."""
-    label, _, u = PARAMS.get(path, (path.rsplit(".", 1)[-1].replace("_", " ").capitalize(), "", ""))
+    """'robots.arm_speed' -> 'Arm speed (m/s)'; unknown paths get their section, field and
+    the schema's unit ('belt.length' -> 'Belt length (m)')."""
+    label, _, u = PARAMS.get(path) or _fallback(path)
     return f"{label} ({u})" if unit and u else label
 
 
@@ -47,12 +78,21 @@ def fmt_value(value: Any) -> str:
     return str(value)
 
 
+def fmt_bound(x: float, target: float, digits: int = 1) -> str:
+    """A bound of an interval with as many decimals as it takes not to round across the
+    target: 94.99 against 95 is '94.99', not '95.0' (which would read as meeting it)."""
+    d = digits
+    while d < 4 and (round(x, d) >= target) != (x >= target):
+        d += 1
+    return f"{x:.{d}f}"
+
+
 def param_value(path: str, value: Any, lower: bool = False) -> str:
     """'Arm speed 4 m/s' ('arm speed 4 m/s' inside a sentence); an MTBF of 0 is 'no
     breakdowns'."""
     if path == "robots.mtbf" and not value:
         return "no breakdowns" if lower else "No breakdowns"
-    label, _, unit = PARAMS.get(path, (param_label(path, unit=False), "", ""))
+    label, _, unit = PARAMS.get(path) or _fallback(path)
     label = label.lower() if lower and not label.isupper() else label
     return f"{label} {fmt_value(value)}{' ' + unit if unit else ''}"
 

@@ -20,13 +20,18 @@ SCRIPT = """
   var data = JSON.parse(root.querySelector('script[type="application/json"]').textContent);
   var selects = Array.prototype.slice.call(root.querySelectorAll('select'));
   var out = root.querySelector('output');
+  function bound(x) {  // never rounded across the target: 94.99 against 95 is not '95.0'
+    var d = 1, t = data.target;
+    while (t !== null && d < 4 && ((+x.toFixed(d) >= t) !== (x >= t))) { d += 1; }
+    return x.toFixed(d);
+  }
   function show() {
     var want = selects.map(function (s) { return s.value; }).join('|');
     var row = data.rows.find(function (r) { return r.key === want; });
     if (!row) { out.textContent = 'This combination was not run in the study.'; return; }
     var text = 'G = ' + row.mean.toFixed(1) + ' %%';
     text += row.low === null ? ' (' + (row.why || 'no interval') + ')' :
-      ' (' + data.level + ' CI ' + row.low.toFixed(1) + ' to ' + row.high.toFixed(1) + ' %%)';
+      ' (' + data.level + ' CI ' + bound(row.low) + ' to ' + bound(row.high) + ' %%)';
     if (row.cost !== null) { text += ' · total cost ' + Math.round(row.cost).toLocaleString('en'); }
     else if (data.nocost) { text += ' · ' + data.nocost; }
     if (row.note) { text += ' · ' + row.note; }
@@ -46,13 +51,28 @@ def _num(v: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _order(text: str) -> tuple[int, float, str]:
+    """Numbers first, by value; then words."""
+    x = _num(text)
+    return (0, x, "") if x is not None else (1, 0.0, text)
+
+
+def _combo_label(keys: Sequence[str], key: str) -> str:
+    cells = key.split("|")
+    return " · ".join(
+        c if k == "policy" else f"{param_label(k, unit=False)} {c}"
+        for k, c in zip(keys, cells, strict=True)
+    )
+
+
 def whatif_html(
     paths: Sequence[str],
     rows: Sequence[dict[str, Any]],
     level: str = "95 %",
     start: dict[str, Any] | None = None,
-    panel_id: str = "whatif",
+    panel_id: str = "whatif-panel",
     no_cost: str = "",
+    target: float | None = None,
 ) -> str:
     """The panel: ``rows`` are {values: {path: value}, policy, mean, low, high, cost?,
     note?, why? (said instead of the interval when low is None)}; ``start`` the combination
@@ -79,8 +99,24 @@ def whatif_html(
                 "why": r.get("why") or "",
             }
         )
+    for k in keys:  # each drop-down in axis order (numbers as numbers)
+        options[k].sort(key=_order)
     first = start or {**rows[0]["values"], "policy": rows[0]["policy"]}
     controls = []
+    if math.prod(len(v) for v in options.values()) > len(data):
+        # sparse (a continuous range: few of the crossed values were run together): one
+        # drop-down of the combinations that were run, sorted, instead of offering the rest
+        names = sorted(
+            ((str(d["key"]), _combo_label(keys, str(d["key"]))) for d in data),
+            key=lambda kv: [_order(c) for c in kv[0].split("|")],
+        )
+        chosen = "|".join([fmt_value(first.get(k)) for k in paths] + [str(first.get("policy"))])
+        opts = "".join(
+            f'<option value="{esc(key)}"{" selected" if key == chosen else ""}>{esc(name)}</option>'
+            for key, name in names
+        )
+        controls.append(f"<label>Configuration run <select>{opts}</select></label>")
+        keys = []
     for k in keys:
         label = "Rule" if k == "policy" else param_label(k)
         chosen = fmt_value(first.get(k)) if k != "policy" else str(first.get("policy"))
@@ -89,7 +125,7 @@ def whatif_html(
             for o in options[k]
         )
         controls.append(f"<label>{esc(label)} <select>{opts}</select></label>")
-    payload = json.dumps({"rows": data, "level": level, "nocost": no_cost})
+    payload = json.dumps({"rows": data, "level": level, "nocost": no_cost, "target": target})
     payload = payload.replace("</", "<\\/")
     return (
         "<style>.whatif .controls{display:flex;flex-wrap:wrap;gap:10px 22px;margin:6px 0 10px}"

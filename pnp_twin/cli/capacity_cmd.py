@@ -28,9 +28,17 @@ from pnp_twin.cli.app import (
 )
 from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
+from pnp_twin.cli.decision_opts import RayAddressOpt, RayBackendOpt, executor
 from pnp_twin.cli.study_folder import check_policies, run_locked
 from pnp_twin.studies.calibrate_eval import EVALS
-from pnp_twin.studies.capacity import check_capacity, run_capacity
+from pnp_twin.studies.capacity import (
+    AUTO_FIRST,
+    AUTO_MOST,
+    GAP,
+    check_capacity,
+    parse_replications,
+    run_capacity,
+)
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.budget import check_study
 from pnp_twin.twin.errors import UserError
@@ -49,8 +57,25 @@ def capacity_cmd(
         typer.Option("--policy", "-p", help="Rule to run (repeatable: the best is picked)."),
     ] = None,
     replications: Annotated[
-        int, typer.Option("--replications", "-r", help="Replications per flow.")
-    ] = 5,
+        str,
+        typer.Option(
+            "--replications",
+            "-r",
+            help="Replications per flow, or auto: doubled from 5 until the promise is within "
+            "--gap of the mean crossing.",
+        ),
+    ] = "5",
+    gap: Annotated[
+        float,
+        typer.Option(
+            "--gap",
+            help="With -r auto: the promise's largest gap below the mean "
+            "crossing, as a share (0.05 = 5 %).",
+        ),
+    ] = GAP,
+    max_replications: Annotated[
+        int, typer.Option("--max-replications", help="With -r auto: at most this many.")
+    ] = AUTO_MOST,
     vary: Annotated[
         list[str] | None,
         typer.Option(
@@ -69,34 +94,44 @@ def capacity_cmd(
     json_out: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
     force: ForceOpt = False,
+    backend: RayBackendOpt = "local",
+    address: RayAddressOpt = None,
 ) -> None:
     """The highest part flow the line sustains at a target gripping rate, with its interval."""
     sc = load_scenario(scenario, parse_sets(sets or []))
     figure = parse_kpi(kpi, sc)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; give a folder")
-    check_capacity(sc, target, confidence, replications, vary or [], start)  # before the folder
-    check_policies(policy or [sc.policy], sc.robots.count)
-    check_study(sc, {}, len(policy or [sc.policy]), replications, force)  # work limit
-    result = run_locked(
-        out,
-        "capacity",
-        inputs_of(scenario, sc, policy=policy),
-        lambda cmd: run_capacity(
-            sc,
+    reps = parse_replications(replications)
+    first = AUTO_FIRST if reps == "auto" else int(reps)
+    check_capacity(sc, target, confidence, first, vary or [], start, gap, max_replications)
+    check_policies(policy or [sc.policy], sc.robots.count)  # all before the folder exists
+    most = max_replications if reps == "auto" else first
+    check_study(sc, {}, len(policy or [sc.policy]), most, force)  # work limit
+    n_workers = workers or (os.cpu_count() or 1)
+    with executor(backend, n_workers, address) as runner:
+        result = run_locked(
             out,
-            target,
-            confidence,
-            policy,
-            replications,
-            workers or (os.cpu_count() or 1),
-            engine.value,
-            start,
-            cmd,
-            vary=vary or [],
-            kpi=figure,
-        ),
-    )
+            "capacity",
+            inputs_of(scenario, sc, policy=policy),
+            lambda cmd: run_capacity(
+                sc,
+                out,
+                target,
+                confidence,
+                policy,
+                reps,
+                n_workers,
+                engine.value,
+                start,
+                cmd,
+                vary=vary or [],
+                kpi=figure,
+                executor=runner,
+                gap=gap,
+                most=max_replications,
+            ),
+        )
     if not no_report:
         from pnp_twin.reports.capacity import build_capacity_report
 
@@ -113,6 +148,7 @@ def capacity_cmd(
     for c in result.get("configurations") or [result]:
         typer.echo(c["text"])
     note(
-        f"{result['evaluated']} flows evaluated ({result['simulated']} simulated, "
-        f"{result['replayed']} replayed from {out / EVALS})"
+        f"{result['flows_evaluated']} flows evaluated with {result['replications']} replications "
+        f"each: {result['runs_simulated']} runs simulated, {result['runs_replayed']} replayed "
+        f"from {out / EVALS}"
     )

@@ -9,6 +9,7 @@ confidence or cost file reuses every journalled run (``DIR/evals/``).
 from __future__ import annotations
 
 import os
+import textwrap
 from pathlib import Path
 from typing import Annotated
 
@@ -28,8 +29,17 @@ from pnp_twin.cli.app import (
 )
 from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
+from pnp_twin.cli.decision_opts import (
+    AcrossOpt,
+    BaselineOpt,
+    RayAddressOpt,
+    RayBackendOpt,
+    WriteScenarioOpt,
+    executor,
+)
 from pnp_twin.cli.study_folder import check_policies, run_locked
-from pnp_twin.studies.design import check_design, run_design
+from pnp_twin.studies.deploy import check_scenario_out, scenario_file_text, write_scenario_file
+from pnp_twin.studies.design import check_baseline, check_design, run_design
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.twin.budget import check_study
 from pnp_twin.twin.errors import UserError
@@ -76,6 +86,11 @@ def design_cmd(
     json_out: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
     force: ForceOpt = False,
+    across: AcrossOpt = None,
+    baseline: BaselineOpt = None,
+    write_scenario: WriteScenarioOpt = None,
+    backend: RayBackendOpt = "local",
+    address: RayAddressOpt = None,
 ) -> None:
     """The cheapest configuration meeting a target gripping rate with a confidence."""
     sc = load_scenario(scenario, parse_sets(sets or []))
@@ -89,41 +104,70 @@ def design_cmd(
         max_replications, replications = traces, min(replications, traces)
         note(f"feeder.trace: {traces} traces, so at most {traces} replications (trace k each)")
     check_design(
-        sc, target, vary or [], costs, confidence, replications, max_replications, trials
+        sc,
+        target,
+        vary or [],
+        costs,
+        confidence,
+        replications,
+        max_replications,
+        trials,
+        across or [],
     )  # every mistake is one line before the folder exists
     check_policies(policy or [sc.policy], sc.robots.count)
     check_study(sc, {}, len(policy or [sc.policy]), max_replications, force)  # work limit
-    result = run_locked(
-        out,
-        "design",
-        inputs_of(scenario, sc, costs=costs, policy=policy),
-        lambda cmd: run_design(
-            sc,
+    inputs = inputs_of(scenario, sc, costs=costs, policy=policy, baseline=baseline)
+    today = check_baseline(baseline, costs, sc, across or [])
+    if write_scenario is not None:
+        check_scenario_out(write_scenario, inputs, "--write-scenario")
+    runner = executor(backend, workers or (os.cpu_count() or 1), address)
+    with runner:
+        result = run_locked(
             out,
-            target,
-            vary or [],
-            policy,
-            costs,
-            confidence,
-            replications,
-            max_replications,
-            workers or (os.cpu_count() or 1),
-            engine.value,
-            cmd,
-            trials=trials,
-            kpi=figure,
-        ),
-    )
+            "design",
+            inputs,
+            lambda cmd: run_design(
+                sc,
+                out,
+                target,
+                vary or [],
+                policy,
+                costs,
+                confidence,
+                replications,
+                max_replications,
+                workers or (os.cpu_count() or 1),
+                engine.value,
+                cmd,
+                trials=trials,
+                kpi=figure,
+                across=across or [],
+                baseline=today,
+                executor=runner,
+            ),
+        )
+    if write_scenario is not None and result["choice"] is not None:
+        text = scenario_file_text(
+            result["scenario_chosen"],
+            result["choice"]["policy"],
+            result["seeds"],
+            result["command"],
+            textwrap.wrap(result["text"], 96),
+            sc.source_dir,
+        )
+        note(f"scenario: {write_scenario_file(write_scenario, text)}")
+    elif write_scenario is not None:
+        note(f"--write-scenario: nothing written to {write_scenario}: no configuration meets it")
     if not no_report:
         from pnp_twin.reports.design import build_design_report
 
         note(f"report: {build_design_report(out)}")
     if json_out:
-        keep = ("scenario", "rows")
+        keep = ("scenario", "scenario_chosen", "rows")
         typer.echo(dumps_json({k: v for k, v in result.items() if k not in keep}, indent=2))
         return
     typer.echo(result["text"])
     note(
         f"{result['runs']} runs of the {result['runs_fixed']} a fixed {max_replications} "
-        f"replications would take ({result['simulated']} simulated now)"
+        f"replications would take ({result['runs_simulated']} simulated now)"
     )

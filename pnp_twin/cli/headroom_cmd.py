@@ -11,6 +11,7 @@ so the same command after a kill resumes: finished runs are read back, not simul
 from __future__ import annotations
 
 import math
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Annotated
 
@@ -32,7 +33,9 @@ from pnp_twin.cli.app import (
 )
 from pnp_twin.cli.claim import claim_folder, inputs_of
 from pnp_twin.cli.console import note, stdout_console
+from pnp_twin.cli.decision_opts import RayAddressOpt, RayBackendOpt, executor
 from pnp_twin.cli.study_folder import with_duration
+from pnp_twin.parallel import ray_session
 from pnp_twin.policies.rules import RULES
 from pnp_twin.studies.calibrate_eval import EVALS
 from pnp_twin.studies.headroom import BOUND_NOTE, Headroom, HeadroomSettings, check_policies
@@ -85,6 +88,8 @@ def headroom(
     as_json: JsonOpt = False,
     kpi: KpiOpt = "gripping_rate",
     force: ForceOpt = False,
+    backend: RayBackendOpt = "local",
+    address: RayAddressOpt = None,
 ) -> None:
     """How much could smarter coordination gain? Best rule, best mix, given policies, the
     lookahead controller and its clairvoyant bound, paired by seed."""
@@ -100,7 +105,10 @@ def headroom(
         engine=engine.value,
         workers=workers,
         kpi=figure,
+        backend=backend,
+        address=address,
     )
+    executor(backend, workers, address)  # a bad backend or address: one line, nothing made
     check_policies(sc, settings)  # a bad name fails before the folder is made
     runs = len(settings.policies) + len(RULES) + 4  # + VAL, the mix, lookahead, bound
     check_study(sc, {}, runs, seeds, force)
@@ -109,7 +117,8 @@ def headroom(
 
     with claim_folder(out, "headroom", inputs_of(scenario, sc, policy=policy)):
         with open_store(out / EVALS) as store:  # every run as it finishes: a kill resumes
-            result = run_headroom(sc, settings, _progress, store)
+            with ray_session(workers, address) if backend == "ray" else nullcontext():
+                result = run_headroom(sc, settings, _progress, store)
         write_headroom(result, out)
     if as_json:
         typer.echo(dumps_json(result.to_json(), indent=2))

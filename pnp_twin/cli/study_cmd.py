@@ -13,6 +13,7 @@ import math
 import os
 import shlex
 import sys
+import textwrap
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager
@@ -49,8 +50,11 @@ from pnp_twin.cli.app import (
 )
 from pnp_twin.cli.claim import claim_folder, inputs_of
 from pnp_twin.cli.console import note, stderr_console, stdout_console
+from pnp_twin.cli.decision_opts import AcrossOpt, WriteScenarioOpt
 from pnp_twin.studies import Options, build_plan, run_sweep
 from pnp_twin.studies.costing import check_costs, read_costs
+from pnp_twin.studies.deploy import check_scenario_out, scenario_file_text, write_scenario_file
+from pnp_twin.studies.design_conditions import parse_across
 from pnp_twin.studies.folder import Tables
 from pnp_twin.studies.kpi_choice import parse_kpi
 from pnp_twin.studies.plan import AUTO
@@ -390,6 +394,37 @@ def sweep(
     _report(out, no_report)
 
 
+def with_conditions(sc: Scenario, across: list[str]) -> Scenario:
+    """``size --across PATH=V1,V2``: each a condition of sweep.grid, which size already
+    requires every count to meet the target at (an intersection-union test: each condition
+    at the full level, so the claim 'meets at every condition' keeps the confidence)."""
+    if not across:
+        return sc
+    grid = {**(sc.sweep.grid if sc.sweep else {}), **parse_across(across, sc)}
+    if any(p in (sc.sweep.grid if sc.sweep else {}) for p in parse_across(across, sc)):
+        raise UserError("--across: a field already in sweep.grid; give it in one place")
+    shifts = "feeder.trace" in grid and sc.feeder.arrival != "trace"  # each shift replayed
+    return with_overrides(
+        sc, {"sweep.grid": grid, **({"feeder.arrival": "trace"} if shifts else {})}
+    )
+
+
+def _write_choice(sizing: dict[str, Any], path: Path, sc: Scenario) -> None:
+    spec = sizing.get("showcase_spec")
+    if spec is None:
+        note(f"--write-scenario: nothing written to {path}: no count meets the target")
+        return
+    text = scenario_file_text(
+        spec.scenario.model_dump(mode="json"),
+        spec.policy,
+        [spec.seed],
+        shlex.join(["pnp-twin", *sys.argv[1:]]),
+        textwrap.wrap(sizing["text"], 96),
+        sc.source_dir,
+    )
+    note(f"scenario: {write_scenario_file(path, text)}")
+
+
 @app.command("size")
 def size(
     scenario: ScenarioArg,
@@ -420,9 +455,12 @@ def size(
     engine: EngineOpt = Engine.auto,
     costs: CostsOpt = None,
     kpi: KpiOpt = "gripping_rate",
+    across: AcrossOpt = None,
+    write_scenario: WriteScenarioOpt = None,
 ) -> None:
     """The smallest robot count reaching a target gripping rate with a confidence."""
     sc, reps = _with_precision(_load(scenario, sets), replications, half_width, max_replications)
+    sc = with_conditions(sc, across or [])
     figure = parse_kpi(kpi, sc)
     grid = sc.sweep.grid if sc.sweep else {}
     counts = 1 if COUNT in grid else max(8, 2 * sc.robots.count)  # what run_size adds
@@ -430,12 +468,17 @@ def size(
     target = check_size(sc, target, confidence, policy, reps, layout)
     plan = build_plan(sc, policies=policy, replications=reps) if costs else None
     prices = _costs(costs, plan.scenarios) if plan is not None else None
+    if write_scenario is not None:
+        inputs = inputs_of(scenario, sc, costs=costs, policy=policy)
+        check_scenario_out(write_scenario, inputs, "--write-scenario")
     opts = _options(workers, backend, address, fresh, None, confidence, engine)
     opts.costs, opts.costs_file = prices, str(costs or "")
     opts.kpi = figure
     with _claim("size", out, scenario, sc, policy, costs), progress_bar("size") as update:
         opts.progress = update
         tables, sizing = run_size(sc, out, target, opts, policy, reps, layout)
+    if write_scenario is not None:
+        _write_choice(sizing, write_scenario, sc)
     rows = pd.DataFrame(sizing["rows"])
     rows = rows[rows[MTBF] == 0] if MTBF in rows else rows
     t = Table(

@@ -7,6 +7,9 @@ prints the answer, the line to type into the controller, or the JSON with ``--js
 
 from __future__ import annotations
 
+import shlex
+import sys
+import textwrap
 from pathlib import Path
 from typing import Annotated
 
@@ -25,7 +28,9 @@ from pnp_twin.cli.app import (
 )
 from pnp_twin.cli.claim import inputs_of
 from pnp_twin.cli.console import note
+from pnp_twin.cli.decision_opts import WriteScenarioOpt
 from pnp_twin.cli.study_folder import run_locked, with_duration
+from pnp_twin.studies.deploy import check_scenario_out, scenario_file_text, write_scenario_file
 from pnp_twin.studies.tune import Tuned, TuneSettings, check_tune
 from pnp_twin.twin.budget import check_study
 from pnp_twin.twin.loader import load_scenario, parse_sets
@@ -78,6 +83,7 @@ def tune(
     engine: EngineOpt = Engine.fast,
     as_json: JsonOpt = False,
     force: ForceOpt = False,
+    write_scenario: WriteScenarioOpt = None,
 ) -> None:
     """The settings of a controller's balancing mode (share or lane) that maximise G, or meet
     a target with the fewest parts passed on: the line to type into the controller."""
@@ -96,6 +102,9 @@ def tune(
     )
     check_tune(sc, settings)  # everything refusable before the folder is made
     check_study(sc, {}, trials + 2, seeds + tuning_seeds, force)  # work limit
+    inputs = inputs_of(scenario, sc)
+    if write_scenario is not None:
+        check_scenario_out(write_scenario, inputs, "--write-scenario")
     from pnp_twin.studies.tune import run_tune
 
     def work(_: str) -> Tuned:
@@ -103,7 +112,17 @@ def tune(
         write_tune(result, out)
         return result
 
-    result = run_locked(out, "tune", inputs_of(scenario, sc), work)
+    result = run_locked(out, "tune", inputs, work)
+    if write_scenario is not None:
+        text = scenario_file_text(
+            sc.model_dump(mode="json"),
+            result.best.name,
+            settings.seed_list,
+            shlex.join(["pnp-twin", *sys.argv[1:]]),
+            textwrap.wrap(result.answer(), 96),
+            sc.source_dir,
+        )
+        note(f"scenario: {write_scenario_file(write_scenario, text)}")
     if as_json:
         typer.echo(dumps_json(result.to_json(), indent=2))
         return

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from pnp_twin.parallel import pool_map
+from pnp_twin.studies.backends import Executor
 from pnp_twin.studies.execute import execute
 from pnp_twin.studies.plan import RunSpec, StudyError
 from pnp_twin.studies.runstore import RunStore
@@ -122,6 +123,7 @@ class Evaluator:
         workers: int = 1,
         engine: str = "auto",
         store: RunStore | None = None,
+        executor: Executor | None = None,
     ) -> None:
         self.folder = Path(folder) / EVALS
         self.policies = tuple(policies)
@@ -137,6 +139,8 @@ class Evaluator:
         self.store = store if store is not None else RunStore(self.folder)
         self.runs_simulated = 0  # runs simulated now; the others of a simulated point came
         self.runs_replayed = 0  # from the runs store (a point cut short by a kill)
+        self.runs_from_points = 0  # the runs of whole points read back from the journal
+        self.executor = executor  # one pool (or Ray session) for a whole study, if given
 
     def predict(
         self, scenarios: Sequence[Scenario], labels: Sequence[str]
@@ -161,6 +165,7 @@ class Evaluator:
             if stored is not None:
                 runs[i] = stored
                 self.replayed += 1
+                self.runs_from_points += sum(len(rows) for rows in stored.values())
             else:
                 todo.append(i)
         if todo:
@@ -230,8 +235,10 @@ class Evaluator:
             self.engines_ran.add(str(row.get("engine", "simpy")))
 
         try:
+            if self.executor is not None:
+                self.executor.run(specs, keep)
             # a fresh pool costs a second or two to start: worth it only for a big batch
-            if self.workers > 1 and len(specs) >= POOL_MIN_RUNS * self.workers:
+            elif self.workers > 1 and len(specs) >= POOL_MIN_RUNS * self.workers:
                 pool_map(execute, specs, keep, self.workers, preload=["pnp_twin.studies.execute"])
             else:
                 for spec in specs:

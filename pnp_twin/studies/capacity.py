@@ -35,6 +35,7 @@ configuration's interval is its own (no selection is made among them).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import time
@@ -42,12 +43,15 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from pnp_twin.studies.calibrate_eval import Evaluator
-from pnp_twin.studies.design import choice_text, parse_vary
+from pnp_twin.studies.backends import Executor
+from pnp_twin.studies.calibrate_eval import EVALS, Evaluator
+from pnp_twin.studies.design_text import choice_text
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
 from pnp_twin.studies.plan import StudyError
+from pnp_twin.studies.runstore import RunStore
 from pnp_twin.studies.seeds import replication_seeds
 from pnp_twin.studies.sizing import selected_confidence
+from pnp_twin.studies.vary import parse_vary
 from pnp_twin.twin.loader import ScenarioError, with_overrides
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.scenario import Scenario
@@ -61,6 +65,9 @@ RATE_DIGITS = 4  # flows are rounded to 4 significant digits (reused across ques
 CRITERIA = {"max_rate": "mean", "ci_low": "low", "ci_high": "high"}
 MIN_FLOW, MAX_FLOW = 0.001, 1000.0  # parts/s: the scenario schema's bounds on feeder.rate
 MAX_REPLICATIONS = 1000  # per flow
+AUTO_FIRST = 5  # --replications auto starts here and doubles
+AUTO_MOST = 80  # ... up to this many (--max-replications)
+GAP = 0.05  # ... until the promise is within this share of the mean crossing (--gap)
 
 
 def _round(rate: float) -> float:
@@ -106,7 +113,10 @@ class Capacity:
         each = {rule: self._bounds(rows) for rule, rows in runs.items()}
         point: dict[str, Any] = {"rate": rate, "rules": each}
         for key in ("mean", "low", "high"):
-            point[key] = max(b[key] for b in each.values())
+            finite = [b[key] for b in each.values() if math.isfinite(b[key])]
+            point[key] = max(finite, default=math.nan)
+        # no part in the window at this flow (G undefined): nothing is lost, the flow is low
+        point["empty"] = all(not math.isfinite(b["mean"]) for b in each.values())
         point["policy"] = max(each, key=lambda r: (each[r]["low"], each[r]["mean"]))
         self.points[rate] = point
         if self.progress is not None:
@@ -128,7 +138,14 @@ class Capacity:
         return str(max(each, key=lambda r: (each[r][key], each[r]["mean"])))
 
     def ok(self, rate: float, key: str) -> bool:
-        return bool(self.at(rate)[key] >= self.target)
+        """Whether ``key`` reaches the target at ``rate`` (a flow that brings no part in
+        the window loses none: it counts as reached, so the search moves up from it)."""
+        point = self.at(rate)
+        return bool(point["empty"] or point[key] >= self.target)
+
+    def _step(self, rate: float) -> int:
+        """A doubling or halving step counts unless it landed on an empty flow."""
+        return 0 if self.at(rate)["empty"] else 1
 
     def crossing(self, key: str, start: float) -> tuple[float | None, str]:
         """The highest flow whose ``key`` (mean, low or high) reaches the target, and how
@@ -149,7 +166,7 @@ class Capacity:
             if steps >= MAX_STEPS or lo >= MAX_FLOW:
                 return lo, "above"
             r = min(_round(lo * 2), MAX_FLOW)
-            steps += 1
+            steps += self._step(r)
             if self.ok(r, key):
                 lo = r
             else:
@@ -158,7 +175,7 @@ class Capacity:
             if steps >= MAX_STEPS or hi <= MIN_FLOW:
                 return None, "below"
             r = max(_round(hi / 2), MIN_FLOW)
-            steps += 1
+            steps += self._step(r)
             if self.ok(r, key):
                 lo = r
             else:
@@ -183,6 +200,8 @@ def check_capacity(
     replications: int = 5,
     vary: Sequence[str] = (),
     start: float | None = None,
+    gap: float = GAP,
+    most: int = AUTO_MOST,
 ) -> list[dict[str, Any]]:
     """Every check of a capacity question before anything is written; returns the
     combinations of the varied fields ([{}] without any), or raises a one-line StudyError."""
@@ -194,6 +213,10 @@ def check_capacity(
         raise StudyError(
             f"--replications: {replications} is not allowed; give 2 to {MAX_REPLICATIONS}"
         )
+    if not (math.isfinite(gap) and 0 < gap < 1):
+        raise StudyError(f"--gap: {gap:g} is not allowed; give a share between 0 and 1, e.g. 0.05")
+    if not 2 <= most <= MAX_REPLICATIONS:
+        raise StudyError(f"--max-replications: {most} is not allowed; give 2 to {MAX_REPLICATIONS}")
     if start is not None and not (math.isfinite(start) and MIN_FLOW <= start <= MAX_FLOW):
         raise StudyError(
             f"--start: {start:g} parts/s is not allowed; give a flow from {MIN_FLOW:g} to "
@@ -226,13 +249,80 @@ def check_capacity(
     return combos
 
 
+def parse_replications(text: str) -> int | str:
+    """``-r``: a whole number of replications per flow, or "auto"."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return int(text)
+    except ValueError:
+        raise StudyError(
+            f"--replications: '{text[:40]}' is not allowed; give a whole number (2 to "
+            f"{MAX_REPLICATIONS}) or auto"
+        ) from None
+
+
+def _crossings(cap: Capacity, first: float) -> dict[str, tuple[float | None, str]]:
+    """The three crossings, searched again until none moves: each is searched among every
+    flow evaluated so far, so a later search's flows can move an earlier crossing (where G
+    is not quite monotone in the flow) and the answer always reads promise <= mean <= upper."""
+    cross = {name: cap.crossing(key, first) for name, key in CRITERIA.items()}
+    for _ in range(3):
+        again = {name: cap.crossing(key, first) for name, key in CRITERIA.items()}
+        if again == cross:
+            break
+        cross = again
+    return cross
+
+
+def _search(
+    sc: Scenario,
+    ev: Evaluator,
+    values: dict[str, Any],
+    name: str,
+    first: float,
+    question: tuple[float, float, KpiChoice],
+    progress: Callable[[int], None] | None,
+) -> dict[str, Any]:
+    """One configuration's capacity with the evaluator's replications."""
+    target, confidence, kpi = question
+    cap = Capacity(sc, ev, target, confidence, progress, name, kpi.column)
+    cross = _crossings(cap, first)
+    by = {name: cap.rule_at(cross[name][0], key) for name, key in CRITERIA.items()}
+    one: dict[str, Any] = {
+        "choice": values,
+        "max_rate": cross["max_rate"][0],
+        "ci_low": cross["ci_low"][0],
+        "ci_high": cross["ci_high"][0],
+        "search": {k: v[1] for k, v in cross.items()},
+        "policy": by["ci_low"] or by["max_rate"],  # the rule the promise is for
+        "policies": by,
+        "robots": sc.robots.count,
+        "curve": sorted(cap.points.values(), key=lambda p: p["rate"]),
+        "confidence": confidence,
+        "target": target,
+        "replications": len(ev.seeds),
+    }
+    one["flows_evaluated"] = one["evaluated"] = len(one["curve"])
+    return one
+
+
+def promise_gap(one: Mapping[str, Any]) -> float:
+    """How far the promise sits below the mean crossing, as a share of the mean crossing
+    (inf when either is missing): what ``--replications auto`` shrinks."""
+    mean, low = one.get("max_rate"), one.get("ci_low")
+    if not mean or low is None:
+        return math.inf
+    return max(0.0, (mean - low) / mean)
+
+
 def run_capacity(
     scenario: Scenario,
     out: Path,
     target: float,
     confidence: float = 0.95,
     policies: Sequence[str] | None = None,
-    replications: int = 5,
+    replications: int | str = 5,
     workers: int = 1,
     engine: str = "auto",
     start: float | None = None,
@@ -240,40 +330,47 @@ def run_capacity(
     progress: Callable[[int], None] | None = None,
     vary: Sequence[str] = (),
     kpi: KpiChoice = GRIPPING,
+    executor: Executor | None = None,
+    gap: float = GAP,
+    most: int = AUTO_MOST,
 ) -> dict[str, Any]:
     """Find the line's capacity at ``target`` into ``out``; returns capacity.json's mapping.
     With a ``kpi`` other than G the target and the curve's mean and bounds are on that
-    figure, which ``kpi`` names."""
-    combos = check_capacity(scenario, target, confidence, replications, vary)
+    figure, which ``kpi`` names. ``replications="auto"``: from :data:`AUTO_FIRST`, doubled
+    (up to ``most``) while the promise sits more than ``gap`` (a share) below the mean
+    crossing. Every batch runs on ``executor`` (one pool for the whole search; a local one
+    of ``workers`` processes when None)."""
+    auto = replications == "auto"
+    first_n = AUTO_FIRST if auto else int(replications)
+    combos = check_capacity(scenario, target, confidence, first_n, vary, None, gap, most)
     rules = list(policies or [scenario.policy])
     t0 = time.perf_counter()
-    seeds = replication_seeds(scenario.seed, replications)
     kept = ["part_flow", "throughput"] + ([] if kpi.column == "gripping_rate" else [kpi.column])
-    ev = Evaluator(out, rules, seeds, kept, workers, engine)
     first = _round(start if start is not None else scenario.feeder.rate)
     found: list[dict[str, Any]] = []
-    for i, values in enumerate(combos):
-        sc = with_overrides(scenario, values) if values else scenario
-        name = "".join(f"{k}={v}, " for k, v in values.items()) if i else ""
-        cap = Capacity(sc, ev, target, confidence, progress, name, kpi.column)
-        cross = {name: cap.crossing(key, first) for name, key in CRITERIA.items()}
-        by = {name: cap.rule_at(cross[name][0], key) for name, key in CRITERIA.items()}
-        one: dict[str, Any] = {
-            "choice": values,
-            "max_rate": cross["max_rate"][0],
-            "ci_low": cross["ci_low"][0],
-            "ci_high": cross["ci_high"][0],
-            "search": {k: v[1] for k, v in cross.items()},
-            "policy": by["ci_low"] or by["max_rate"],  # the rule the promise is for
-            "policies": by,
-            "robots": sc.robots.count,
-            "curve": sorted(cap.points.values(), key=lambda p: p["rate"]),
-            "confidence": confidence,
-            "target": target,
-        }
-        one["evaluated"] = len(one["curve"])
-        one["text"] = capacity_text(one, kpi)
-        found.append(one)
+    counts = {"runs_simulated": 0, "runs_replayed": 0}
+    store = RunStore(Path(out) / EVALS)  # one store for every round: opened once
+    with contextlib.ExitStack() as stack:
+        if executor is None:
+            executor = stack.enter_context(Executor("local", workers))
+        for i, values in enumerate(combos):
+            sc = with_overrides(scenario, values) if values else scenario
+            name = "".join(f"{k}={v}, " for k, v in values.items()) if i else ""
+            n, tried = first_n, []
+            while True:
+                seeds = replication_seeds(scenario.seed, n)
+                ev = Evaluator(out, rules, seeds, kept, workers, engine, store, executor)
+                one = _search(sc, ev, values, name, first, (target, confidence, kpi), progress)
+                counts["runs_simulated"] += ev.runs_simulated
+                counts["runs_replayed"] += ev.runs_replayed + ev.runs_from_points
+                tried.append(n)
+                if not auto or promise_gap(one) <= gap or n >= most:
+                    break
+                n = min(most, 2 * n)
+            if auto:
+                one["auto"] = {"gap": gap, "reached": promise_gap(one), "replications": tried}
+            one["text"] = capacity_text(one, kpi)
+            found.append(one)
     head = found[0]
     result: dict[str, Any] = {
         "target": target,
@@ -287,19 +384,21 @@ def run_capacity(
         "policies": head["policies"],
         "rules": rules,
         "confidence_each": selected_confidence(confidence, len(rules)),
-        "replications": replications,
-        "seeds": seeds,
+        "replications": head["replications"],
+        **({"auto": head["auto"]} if auto else {}),
+        "seeds": replication_seeds(scenario.seed, head["replications"]),
         "tolerance": TOLERANCE,
         "curve": head["curve"],
+        "flows_evaluated": sum(c["evaluated"] for c in found),
         "evaluated": sum(c["evaluated"] for c in found),
-        "simulated": ev.simulated,
-        "replayed": ev.replayed,
+        **counts,
         "scenario": scenario.model_dump(mode="json"),
         "scenario_name": scenario.name,
         "robots": head["robots"],
         "duration": scenario.duration,
         "warmup": scenario.warmup,
         "engine": engine,
+        "backend": executor.backend if executor is not None else "local",
         "command": command,
         "wall_time": time.perf_counter() - t0,
     }
@@ -320,27 +419,50 @@ def _line(c: Mapping[str, Any]) -> str:
 
 
 def capacity_text(c: dict[str, Any], kpi: KpiChoice = GRIPPING) -> str:
-    """'With 6 robots you can promise 11.4 parts/s [11.1, 11.7] at 95 %' and how it ends
-    (the target on the ``kpi`` figure)."""
+    """The answer worded as a promise: 'With 6 robots running SPT you can promise 16.4
+    parts/s at G ≥ 95 % with 95 % confidence; the mean crosses at 19.6 parts/s, and above
+    21.0 parts/s the line misses it with 95 % confidence.' Each crossing the search could
+    not pin down (still met at the highest flow tried, or not met at the lowest) is said so."""
     n, conf = _line(c), f"{100 * c['confidence']:g} %"
     goal = f"{kpi.short} ≥ {c['target']:g} %"
+    curve = c.get("curve") or []
+    highest = max((p["rate"] for p in curve), default=None)
+    lowest = min((p["rate"] for p in curve), default=None)
+    at_high = f" ({highest:.3g} parts/s)" if highest is not None else ""
+    at_low = f" ({lowest:.3g} parts/s)" if lowest is not None else ""
     if c["max_rate"] is None:
-        return f"With {n} no flow tried reaches {goal}, even at the lowest."
-    lo, hi = c["ci_low"], c["ci_high"]
-    span = f" [{lo:.3g}, {hi:.3g}]" if lo is not None and hi is not None else ""
-    above = c["search"]["max_rate"] == "above"
-    more = " (or more: still met at the highest flow tried)" if above else ""
+        return f"With {n} no flow tried reaches {goal}, even the lowest{at_low}."
+    lo, hi, mean = c["ci_low"], c["ci_high"], c["max_rate"]
     by = c.get("policies") or {}
     mean_rule = by.get("max_rate") or c.get("policy")
-    if lo is None or mean_rule == c.get("policy"):  # one rule answers it all
-        rule = f" running {c['policy']}" if c.get("policy") else ""
-        promise = f"; {lo:.3g} parts/s is met with {conf} confidence" if lo is not None else ""
-        return (
-            f"With {n}{rule} the line sustains {c['max_rate']:.3g} parts/s{span} at {goal}"
-            f"{more}{promise}."
+    several = len({r for r in by.values() if r}) > 1
+    after = " after picking the rule" if several else ""
+    if lo is None:
+        out = (
+            f"With {n} no flow tried can be promised at {goal} with {conf} confidence (the "
+            f"lower bound misses it even at the lowest flow tried{at_low})"
         )
-    return (
-        f"With {n} the best rule sustains {c['max_rate']:.3g} parts/s{span} at {goal}"
-        f"{more} ({mean_rule} by the mean); running {c['policy']}, {lo:.3g} parts/s is met "
-        f"with {conf} confidence after picking the rule."
-    )
+    else:
+        rule = f" running {c['policy']}" if c.get("policy") else ""
+        out = f"With {n}{rule} you can promise {lo:.3g} parts/s at {goal}"
+        out += f" with {conf} confidence{after}"
+    whose = f" ({mean_rule}'s)" if several and mean_rule != c.get("policy") else ""
+    if c["search"]["max_rate"] == "above":
+        out += f"; the mean{whose} still meets it at the highest flow tried{at_high}"
+    else:
+        out += f"; the mean{whose} crosses at {mean:.3g} parts/s"
+    if hi is None or c["search"].get("ci_high") == "above":
+        out += (
+            f"; the upper bound still reaches it at the highest flow tried{at_high}, so no flow "
+            f"was found where the line misses it with {conf} confidence"
+        )
+    else:
+        out += f", and above {hi:.3g} parts/s the line misses it with {conf} confidence"
+    gap = promise_gap(c)
+    if "auto" not in c and c.get("replications") and GAP < gap < math.inf:
+        out += (
+            f" ({c['replications']} replications per flow leave the promise "
+            f"{100 * gap:.0f} % below the mean crossing; -r auto adds replications until it "
+            f"is within {100 * GAP:g} %)"
+        )
+    return out + "."

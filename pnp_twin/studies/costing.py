@@ -12,9 +12,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from pnp_twin.studies.design import SECONDS_PER_HOUR, capital, read_costs
 from pnp_twin.studies.folder import Tables
 from pnp_twin.studies.plan import StudyPlan
+from pnp_twin.studies.prices import SECONDS_PER_HOUR, capital, read_costs
 from pnp_twin.twin.scenario import Scenario
 
 __all__ = ["check_costs", "read_costs", "study_costs"]

@@ -43,184 +43,36 @@ import functools
 import itertools
 import math
 import time
-import tomllib
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pnp_twin.studies.backends import Executor
 from pnp_twin.studies.calibrate_eval import EVALS, Evaluator
 from pnp_twin.studies.design_answer import answered, question_key
+from pnp_twin.studies.design_conditions import conditions_of, is_condition, parse_across
+from pnp_twin.studies.design_config import Cell, Config, paired_lost_difference, payback
+from pnp_twin.studies.design_text import design_text, line_notes
 from pnp_twin.studies.kpi_choice import GRIPPING, KpiChoice
-from pnp_twin.studies.plan import StudyError, field_path_error
+from pnp_twin.studies.plan import StudyError
+from pnp_twin.studies.prices import (
+    SECONDS_PER_HOUR,
+    capital,
+    costs_json,
+    read_costs,
+    robot_prices,
+    running_per_part,
+)
 from pnp_twin.studies.runstore import RunStore
 from pnp_twin.studies.seeds import replication_seeds
-from pnp_twin.twin.inputs import COSTS_BYTES, read_user_text
-from pnp_twin.twin.loader import ScenarioError, parse_value, with_overrides
+from pnp_twin.studies.vary import Continuous, parse_vary, round_value
+from pnp_twin.twin.loader import ScenarioError, load_scenario, with_overrides
 from pnp_twin.twin.output import write_json
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.stats import t_interval
 from pnp_twin.twin.trace import check_replications, for_replication, trace_files
 
 SUMMARY_FILE = "design.json"
-COST_KEYS = ("robot_price", "belt_price", "lost_part_cost", "hours")
-SECONDS_PER_HOUR = 3600.0
-DIGITS = 4  # continuous values are rounded to 4 significant digits (reused across questions)
-
-
-@dataclass(frozen=True)
-class Continuous:
-    """A continuous range LO:HI (written with a decimal point), searched by the optimiser."""
-
-    low: float
-    high: float
-
-
-def _round(x: float) -> float:
-    return float(f"{x:.{DIGITS}g}")
-
-
-def parse_vary(spec: str) -> tuple[str, list[Any] | Continuous]:
-    """'robots.count=4:9' -> (path, [4, ..., 9]); 'robots.arm_speed=3,4,5' -> a list;
-    'robots.arm_speed=2.0:6.0' (a bound with a decimal point) -> a Continuous range."""
-    path, sep, text = spec.partition("=")
-    path = path.strip()
-    if not sep or not path or not text.strip():
-        raise StudyError(f"--vary {spec!r}: give PATH=LO:HI or PATH=V1,V2,...")
-    problem = field_path_error(path)
-    if problem:
-        raise StudyError(problem.replace("sweep.grid", "--vary"))
-    if ":" in text:
-        lo_text, _, hi_text = text.partition(":")
-        if "." in lo_text or "." in hi_text:
-            try:
-                a, b = float(lo_text), float(hi_text)
-            except ValueError:
-                raise StudyError(f"--vary {spec}: LO:HI must be two numbers") from None
-            if not (math.isfinite(a) and math.isfinite(b)) or not a < b:
-                raise StudyError(f"--vary {spec}: a continuous range needs LO < HI")
-            return path, Continuous(a, b)
-        try:
-            lo, hi = int(lo_text), int(hi_text)
-        except ValueError:
-            raise StudyError(
-                f"--vary {spec}: LO:HI is a range of whole numbers, or a continuous range "
-                "when written with a decimal point (2.0:6.0)"
-            ) from None
-        if hi < lo or hi - lo > 200:
-            raise StudyError(f"--vary {spec}: give LO <= HI, at most 200 apart")
-        return path, list(range(lo, hi + 1))
-    values = [parse_value(v.strip()) for v in text.split(",") if v.strip()]
-    if not values:
-        raise StudyError(f"--vary {spec}: no values")
-    return path, list(dict.fromkeys(values))
-
-
-def _priced(value: Any, key: str, where: str) -> float | dict[float, float]:
-    if isinstance(value, bool):
-        raise StudyError(f"{where}: {key} = {value} is not a price")
-    if isinstance(value, int | float):
-        if not math.isfinite(value) or value < 0:
-            raise StudyError(f"{where}: {key} = {value} must be a number >= 0")
-        return float(value)
-    if isinstance(value, dict) and value:
-        table = {}
-        for speed, price in value.items():
-            try:
-                one = _priced(price, f"{key}.{speed}", where)
-                if isinstance(one, dict):
-                    raise StudyError(f"{where}: {key}.{speed} must be one number")
-                table[float(speed)] = one
-            except ValueError:
-                raise StudyError(f"{where}: {key}: '{speed}' is not a speed in m/s") from None
-        return table
-    raise StudyError(f"{where}: {key} must be a number or a table keyed by speed in m/s")
-
-
-def read_costs(path: Path | None) -> dict[str, Any]:
-    """The cost file (see the module docstring); without one, robots and belts cost 1 and
-    lost parts nothing (the cheapest configuration is then the one with fewest robots)."""
-    if path is None:
-        return {"robot_price": 1.0, "belt_price": 0.0, "lost_part_cost": 0.0, "hours": 0.0}
-    where = f"--costs {path}"
-    text = read_user_text(path, "--costs", COSTS_BYTES, StudyError)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise StudyError(f"{where}: not valid TOML ({str(e).splitlines()[0]})") from None
-    unknown = sorted(set(data) - set(COST_KEYS))
-    if unknown:
-        raise StudyError(f"{where}: unknown key {unknown[0]}; allowed {', '.join(COST_KEYS)}")
-    missing = [k for k in COST_KEYS if k not in data]
-    if missing:
-        raise StudyError(f"{where}: {missing[0]} is missing; give {', '.join(COST_KEYS)}")
-    out: dict[str, Any] = {k: _priced(data[k], k, where) for k in ("robot_price", "belt_price")}
-    for k in ("lost_part_cost", "hours"):
-        v = _priced(data[k], k, where)
-        if isinstance(v, dict):
-            raise StudyError(f"{where}: {k} must be one number")
-        out[k] = v
-    return out
-
-
-def _price(price: float | dict[float, float], speed: float, key: str) -> float:
-    """The price at ``speed``: a listed speed's, else interpolated linearly between the two
-    listed speeds around it (a speed outside the listed ones has no price)."""
-    if not isinstance(price, dict):
-        return price
-    for s, p in price.items():
-        if math.isclose(s, speed, rel_tol=1e-9):
-            return p
-    below = [s for s in price if s < speed]
-    above = [s for s in price if s > speed]
-    if below and above:
-        a, b = max(below), min(above)
-        return price[a] + (price[b] - price[a]) * (speed - a) / (b - a)
-    known = ", ".join(f"{s:g}" for s in price)
-    raise StudyError(f"--costs: {key} has no price for {speed:g} m/s; priced: {known}")
-
-
-def capital(costs: Mapping[str, Any], sc: Scenario) -> float:
-    """Robots and belt: what the configuration costs to buy."""
-    robots = sc.robots.count * _price(costs["robot_price"], sc.robots.arm_speed, "robot_price")
-    return robots + _price(costs["belt_price"], sc.belt.speed, "belt_price")
-
-
-class Config:
-    """One configuration: its values, rule, scenario, cost and runs so far."""
-
-    def __init__(self, values: dict[str, Any], policy: str, scenario: Scenario, cost: float):
-        self.values = values
-        self.policy = policy
-        self.scenario = scenario
-        self.capital = cost
-        self.g: list[float] = []  # the gripping rate per replication (the lost parts' cost)
-        self.y: list[float] = []  # the figure the target is on (--kpi; G by default)
-        self.flow: list[float] = []
-        self._bounds: dict[tuple[float, int], tuple[float, float, float]] = {}
-
-    def label(self) -> str:
-        return ", ".join(f"{k}={v}" for k, v in self.values.items()) + f", {self.policy}"
-
-    def bounds(self, level: float) -> tuple[float, float, float]:
-        # kept per count of runs (runs are only ever appended): a design asks every
-        # configuration's bounds at each point, thousands of times over
-        key = (level, len(self.y))
-        if key not in self._bounds:
-            mean, low, high = t_interval(self.y, level)
-            low = max(low, 0.0) if math.isfinite(low) else 0.0
-            high = min(high, 100.0) if math.isfinite(high) else 100.0
-            self._bounds[key] = mean, low, high
-        return self._bounds[key]
-
-    def lost_cost(self, costs: Mapping[str, Any]) -> float:
-        if not self.g:
-            return math.nan
-        mean_g = sum(self.g) / len(self.g)
-        flow = sum(self.flow) / len(self.flow)
-        lost_per_s = flow * (1.0 - mean_g / 100.0)
-        return float(costs["lost_part_cost"]) * lost_per_s * SECONDS_PER_HOUR * costs["hours"]
 
 
 def _field(sc: Scenario, path: str) -> Any:
@@ -247,12 +99,19 @@ def looks(first: int, most: int) -> int:
 
 
 def parse_grid(vary: Sequence[str]) -> dict[str, Any]:
-    """``--vary`` options as {path: values or range}; a path given twice is refused."""
+    """``--vary`` options as {path: values or range}; a path given twice, or a condition of
+    the plant (``feeder.*``: what arrives is not bought), is refused."""
     grid: dict[str, Any] = {}
     for spec in vary:
         path, values = parse_vary(spec)
         if path in grid:
             raise StudyError(f"--vary {path}: given twice; give each field once")
+        if is_condition(path):
+            raise StudyError(
+                f"--vary {path}: a condition of the plant, not something to buy (varying it "
+                f"would buy the easiest); give it with --across {spec} "
+                "so the choice must meet the target at every value"
+            )
         grid[path] = values
     return grid
 
@@ -266,9 +125,11 @@ def check_design(
     first: int = 3,
     most: int = 24,
     trials: int = 30,
+    across: Sequence[str] = (),
 ) -> tuple[dict[str, Any], dict[str, list[Any] | Continuous], list[dict[str, Any]]]:
     """Every check of a design's input, before anything is written: the costs, the varied
-    fields and the combinations of the discrete ones (a StudyError, one line, otherwise)."""
+    fields, the conditions and the combinations of the discrete fields (a StudyError, one
+    line, otherwise)."""
     if not 0 < target <= 100:
         raise StudyError(f"--target: {target:g} is not allowed; give a percentage in (0, 100]")
     if not 0 < confidence < 1:
@@ -278,7 +139,9 @@ def check_design(
             f"--replications {first}, --max-replications {most}: not allowed; give "
             f"2 <= replications <= max-replications <= {MAX_REPLICATIONS}"
         )
-    if scenario.feeder.arrival == "trace" and len(trace_files(scenario)) < 2:
+    shifts = "feeder.trace" in parse_across(across, scenario)  # each shift's trace: a condition
+    conditions = conditions_of(scenario, parse_across(across, scenario))
+    if scenario.feeder.arrival == "trace" and len(trace_files(scenario)) < 2 and not shifts:
         raise StudyError(
             "design: one replayed trace is one sample, so no interval can say a configuration "
             "meets the target; give several traces (feeder.trace = a list or a folder) or add "
@@ -304,6 +167,8 @@ def check_design(
             point = {**values, **corner}
             try:
                 sc = with_overrides(scenario, point) if point else scenario
+                for condition in conditions[1:]:
+                    with_overrides(sc, condition)
             except ScenarioError as e:
                 raise StudyError(f"--vary {point}: {e}") from None
             for path in box:
@@ -311,8 +176,28 @@ def check_design(
                     raise StudyError(
                         f"--vary {path}: a whole-number field; give LO:HI without decimal points"
                     )
-            capital(costs, sc)  # a price for every speed the search can reach
+            capital(costs, sc)  # a price for every robot and belt speed the search can reach
     return costs, grid, combos
+
+
+def check_baseline(
+    path: Path | None, costs_file: Path | None, scenario: Scenario, across: Sequence[str]
+) -> Scenario | None:
+    """Today's line (``--baseline FILE``), loaded and checked against the conditions before
+    anything is written; None without one."""
+    if path is None:
+        return None
+    if costs_file is None:
+        raise StudyError(
+            f"--baseline {path}: the saving is in lost parts; give --costs with lost_part_cost"
+        )
+    today = load_scenario(path)
+    for condition in conditions_of(scenario, parse_across(across, scenario)):
+        try:
+            with_overrides(today, condition) if condition else today
+        except ScenarioError as e:
+            raise StudyError(f"--baseline {path} at --across {condition}: {e}") from None
+    return today
 
 
 def run_design(
@@ -331,40 +216,53 @@ def run_design(
     progress: Callable[[int, int], None] | None = None,
     trials: int = 30,
     kpi: KpiChoice = GRIPPING,
+    across: Sequence[str] = (),
+    baseline: Scenario | None = None,
+    executor: Executor | None = None,
 ) -> dict[str, Any]:
     """Find the cheapest configuration meeting ``target`` (see the module docstring) on
-    the ``kpi`` figure (G by default): the rows' and the answer's ``gripping_rate``,
-    ``ci_low`` and ``ci_high`` are that figure's, which design.json's ``kpi`` names; the lost
-    parts' cost stays on G."""
+    the ``kpi`` figure (G by default) at every condition of ``across``: the rows' and the
+    answer's ``gripping_rate``, ``ci_low`` and ``ci_high`` are that figure's (the worst
+    condition's), which design.json's ``kpi`` names; the lost parts' cost stays on G. With a
+    ``baseline`` (today's line) the answer adds the saving a year and the payback."""
     costs, grid, combos = check_design(
-        scenario, target, vary, costs_file, confidence, first, most, trials
+        scenario, target, vary, costs_file, confidence, first, most, trials, across
     )
+    conditions = conditions_of(scenario, parse_across(across, scenario))
     t0 = time.perf_counter()
     box = {p: r for p, r in grid.items() if isinstance(r, Continuous)}
     rules = list(policies or [scenario.policy])
     asked = {"target": target, "confidence": confidence, "vary": grid, "first": first}
-    question = question_key(scenario, {**asked, "most": most, "trials": trials}, rules, costs, kpi)
+    asked |= {"most": most, "trials": trials}
+    if across:  # conditions and today's line are part of the question (absent: as before)
+        asked["across"] = conditions
+    if baseline is not None:
+        asked["baseline"] = baseline.model_dump(mode="json")
+    question = question_key(scenario, asked, rules, costs, kpi)
     done = answered(Path(out) / SUMMARY_FILE, question)  # the same question, answered before
     if done is not None:
         done |= {"simulated": 0, "replayed": done["runs"], "command": command}
+        done |= {"runs_simulated": 0, "runs_replayed": done["runs"]}
         done["wall_time"] = time.perf_counter() - t0
         write_json(done, Path(out) / SUMMARY_FILE, keep_nan=True)
         return done
     groups: list[tuple[dict[str, Any], str]] = [(v, rule) for v in combos for rule in rules]
     k = len(groups) * (trials if box else 1)
-    level = 1.0 - (1.0 - confidence) / (k * looks(first, most))
+    level = 1.0 - (1.0 - confidence) / (k * looks(first, most) * len(conditions))
     seeds = replication_seeds(scenario.seed, most)
-    store = RunStore(Path(out) / EVALS)  # one store for every batch: opened once
-    simulated = replayed = 0
+    counts = {"simulated": 0, "replayed": 0, "runs_simulated": 0, "runs_replayed": 0}
     configs: list[Config] = []
-    # the KPIs each run keeps (part of its journal key: G's runs serve G and, on a line
-    # without kinds, the value rate; another figure's are its own)
-    kept = ["part_flow"] + ([] if kpi.column == "gripping_rate" else [kpi.column])
-
+    store = RunStore(Path(out) / EVALS)  # one store for every batch: opened once
     known: dict[tuple[Any, ...], Config] = {}  # (rule, values): found at once, not searched
     met_cost: dict[Config, float] = {}  # each met configuration's total cost
     changed: set[Config] = set()  # configurations with new runs since best_met() looked
     unknown: set[Config] = set()  # met configurations whose total cost is NaN
+    # the KPIs each run keeps (part of its journal key: G's runs serve G and, on a line
+    # without kinds, the value rate; another figure's are its own)
+    kept = ["part_flow"] + ([] if kpi.column == "gripping_rate" else [kpi.column])
+
+    def cells(sc: Scenario) -> list[Cell]:
+        return [Cell(c, with_overrides(sc, c) if c else sc) for c in conditions]
 
     def config(values: dict[str, Any], rule: str) -> Config:
         values = {p: values[p] for p in grid}  # the order the fields were given in
@@ -378,7 +276,7 @@ def run_design(
             sc = with_overrides(scenario, values) if values else scenario
         except ScenarioError as e:
             raise StudyError(f"--vary {values}: {e}") from None
-        c = Config(values, rule, sc, capital(costs, sc))
+        c = Config(values, rule, cells(sc), capital(costs, sc), robot_prices(costs, sc))
         configs.append(c)
         try:
             known[(rule, *values.items())] = c
@@ -387,23 +285,35 @@ def run_design(
         return c
 
     def extend(todo: list[Config], n: int) -> None:
-        nonlocal simulated, replayed
-        for rule in rules:
+        for rule in dict.fromkeys([*rules, *(c.policy for c in todo)]):
             mine = [c for c in todo if c.policy == rule]
             for rep in range(min(len(c.g) for c in mine) if mine else n, n):
-                need = [c for c in mine if len(c.g) == rep]
+                need = [cell for c in mine if len(c.g) == rep for cell in c.cells]
                 if not need:
                     continue
-                ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine, store)
-                lines = [for_replication(c.scenario, rep) for c in need]  # trace k in rep k
-                rows = ev.runs(lines, [c.label() for c in need], [c.values for c in need])
-                simulated += ev.simulated
-                replayed += ev.replayed
-                for c, r in zip(need, rows, strict=True):
-                    c.g.append(float(r[rule][0]["gripping_rate"]))
-                    c.y.append(float(r[rule][0][kpi.column]))
-                    c.flow.append(float(r[rule][0]["part_flow"]))
-                    changed.add(c)
+                names = [
+                    c.label() + "".join(f", {p}={v}" for p, v in cell.condition.items())
+                    for c in mine
+                    if len(c.g) == rep
+                    for cell in c.cells
+                ]
+                ev = Evaluator(out, [rule], [seeds[rep]], kept, workers, engine, store, executor)
+                lines = [for_replication(cell.scenario, rep) for cell in need]  # trace k in rep k
+                points = [
+                    {**c.values, **cell.condition}
+                    for c in mine
+                    if len(c.g) == rep
+                    for cell in c.cells
+                ]
+                rows = ev.runs(lines, names, points)
+                changed.update(c for c in mine if len(c.g) == rep)
+                for key in counts:
+                    counts[key] += getattr(ev, key)
+                counts["runs_replayed"] += ev.runs_from_points
+                for cell, r in zip(need, rows, strict=True):
+                    cell.g.append(float(r[rule][0]["gripping_rate"]))
+                    cell.y.append(float(r[rule][0][kpi.column]))
+                    cell.flow.append(float(r[rule][0]["part_flow"]))
         if progress is not None:
             progress(sum(len(c.g) for c in configs), k * most)
 
@@ -454,63 +364,106 @@ def run_design(
         n = min(most, 2 * max(len(c.g) for c in todo))
         extend(todo, n)
         rounds.append(n)
-    rows: list[dict[str, Any]] = []
-    for c in configs:
-        mean, low, high = c.bounds(level)
-        lost = c.lost_cost(costs)
-        rows.append(
-            {
-                "choice": {**c.values, "policy": c.policy},
-                "gripping_rate": mean,
-                "ci_low": low,
-                "ci_high": high,
-                "replications": len(c.g),
-                "state": _state(c, level, target),
-                "capital_cost": c.capital,
-                "lost_parts_cost": lost,
-                "total_cost": c.capital + lost,
-            }
-        )
-    feasible = sorted((r for r in rows if r["state"] == "met"), key=lambda r: r["total_cost"])
-    answer = feasible[0] if feasible else None
+    rows = [_row(c, level, target, costs, confidence) for c in configs]
+    order = sorted(range(len(rows)), key=lambda i: rows[i]["total_cost"])
+    met = [i for i in order if rows[i]["state"] == "met"]
+    chosen = configs[met[0]] if met else None
+    answer = rows[met[0]] if met else None
+    alternatives = []
+    for i in met[1:6]:
+        alt = dict(rows[i])
+        if chosen is not None:
+            low, high = paired_lost_difference(chosen, configs[i], confidence)
+            capital_diff = configs[i].capital - chosen.capital
+            if float(costs["lost_part_cost"]) and float(costs["hours"]):
+                alt["extra_low"] = capital_diff + running_per_part(costs) * low
+                alt["extra_high"] = capital_diff + running_per_part(costs) * high
+        alternatives.append(alt)
     result: dict[str, Any] = {
         "target": target,
         "confidence": confidence,
         **({} if kpi.default else {"kpi": kpi.to_json()}),
         "confidence_each": level,
         "configurations": k,
+        "looks": looks(first, most),
         "evaluated": len(configs),
         "vary": {
             p: [v.low, v.high] if isinstance(v, Continuous) else list(v) for p, v in grid.items()
         },
+        **({"across": parse_across(across, scenario), "conditions": conditions} if across else {}),
         "continuous": list(box),
         "trials": trials if box else None,
         "rules": rules,
-        "costs": {
-            k2: (v if not isinstance(v, dict) else {f"{s:g}": p for s, p in v.items()})
-            for k2, v in costs.items()
-        },
+        "costs": costs_json(costs),
+        "cost_file": costs_file is not None,
         "choice": answer["choice"] if answer else None,
+        "notes": line_notes(chosen.scenario, costs.get("owned") or ()) if chosen else [],
         "gripping_rate": answer["gripping_rate"] if answer else None,
         "ci_low": answer["ci_low"] if answer else None,
         "ci_high": answer["ci_high"] if answer else None,
+        "replications": answer["replications"] if answer else None,
         "total_cost": answer["total_cost"] if answer else None,
-        "alternatives": feasible[1:6],
-        "rows": sorted(rows, key=lambda r: r["total_cost"]),
+        **(_money(chosen, answer, costs) if chosen is not None and answer else {}),
+        "alternatives": alternatives,
+        "rows": [rows[i] for i in order],
         "rounds": rounds,
-        "runs": sum(r["replications"] for r in rows),
-        "runs_fixed": k * most,
-        "simulated": simulated,
-        "replayed": replayed,
+        "replications_reached": sorted({len(c.g) for c in configs}),
+        "runs": sum(r["replications"] for r in rows) * len(conditions),
+        "runs_fixed": k * most * len(conditions),
+        **counts,
+        "seeds": seeds[: answer["replications"]] if answer else [],
         "scenario": scenario.model_dump(mode="json"),
+        "scenario_chosen": chosen.scenario.model_dump(mode="json") if chosen else None,
         "scenario_name": scenario.name,
         "command": command,
-        "wall_time": time.perf_counter() - t0,
         "question": question,  # design_answer: the same question asked again is read back
     }
+    if baseline is not None and chosen is not None:
+        base = Config({}, baseline.policy, cells(baseline), 0.0)
+        extend([base], len(chosen.g))
+        result["payback"] = payback(chosen, base, costs, confidence, level)
+        result["payback_runs"] = len(base.g) * len(conditions)
+    result["wall_time"] = time.perf_counter() - t0
     result["text"] = design_text(result, kpi)
     write_json(result, Path(out) / SUMMARY_FILE, keep_nan=True)
     return result
+
+
+def _row(
+    c: Config, level: float, target: float, costs: Mapping[str, Any], confidence: float
+) -> dict[str, Any]:
+    """One configuration's row of design.json."""
+    mean, low, high = c.bounds(level)
+    lost = c.lost_cost(costs)
+    half = c.lost_cost_half_width(costs, confidence)
+    return {
+        "choice": {**c.values, "policy": c.policy},
+        "gripping_rate": mean,
+        "ci_low": low,
+        "ci_high": high,
+        "replications": len(c.g),
+        "state": _state(c, level, target),
+        "capital_cost": c.capital,
+        "lost_parts_cost": lost,
+        "total_cost": c.capital + lost,
+        "total_cost_low": c.capital + max(0.0, lost - half),
+        "total_cost_high": c.capital + lost + half,
+        "robot_prices": c.prices,
+    }
+
+
+def _money(c: Config, row: Mapping[str, Any], costs: Mapping[str, Any]) -> dict[str, Any]:
+    """The answer's cost apart: capital, running (lost parts), the interval of the total
+    and the cost per part gripped over the cost file's hours."""
+    parts = c.gripped_per_s() * SECONDS_PER_HOUR * float(costs["hours"])
+    return {
+        "capital_cost": c.capital,
+        "running_cost": row["lost_parts_cost"],
+        "total_cost_low": row["total_cost_low"],
+        "total_cost_high": row["total_cost_high"],
+        "robot_prices": c.prices,
+        "cost_per_part": row["total_cost"] / parts if parts > 0 else None,
+    }
 
 
 def _optimise(
@@ -539,7 +492,7 @@ def _optimise(
         for _ in range(trials):
             trial = study.ask()
             point = {
-                p: min(r.high, max(r.low, _round(trial.suggest_float(p, r.low, r.high))))
+                p: min(r.high, max(r.low, round_value(trial.suggest_float(p, r.low, r.high))))
                 for p, r in box.items()
             }
             c = config(point)
@@ -556,54 +509,3 @@ def _state(c: Config, level: float, target: float) -> str:
     if high < target:
         return "missed"
     return "open"
-
-
-def choice_text(choice: Mapping[str, Any]) -> str:
-    """'6 robots, arm 4 m/s, running SPT' from a choice mapping."""
-    words = []
-    for path, value in choice.items():
-        if path == "policy":
-            continue
-        if path == "robots.count":
-            words.append(f"{value} robots")
-        else:
-            unit = {"arm_speed": " m/s", "speed": " m/s", "rate": " parts/s"}
-            name = path.rsplit(".", 1)[-1]
-            words.append(
-                f"{name.replace('_', ' ')} {value:g}{unit.get(name, '')}"
-                if isinstance(value, int | float)
-                else f"{name} {value}"
-            )
-    return ", ".join(words) + f" running {choice.get('policy')}"
-
-
-def design_text(d: dict[str, Any], kpi: KpiChoice = GRIPPING) -> str:
-    """The answer in one sentence (on the ``kpi`` figure), with the next best for how much
-    more."""
-    conf = f"{100 * d['confidence']:g} %"
-    k, n = d["configurations"], d.get("evaluated", d["configurations"])
-    among = f"{k} configurations" if n == k else f"the {n} points evaluated (of {k} allowed)"
-    if d["choice"] is None:
-        return (
-            f"No configuration of the {n} tried meets {kpi.short} ≥ {d['target']:g} % "
-            f"with {conf} confidence (after selecting among them)."
-        )
-    out = (
-        f"{choice_text(d['choice'])}: {kpi.short} = {d['gripping_rate']:.1f} % "
-        f"[{d['ci_low']:.1f}, {d['ci_high']:.1f}] meets {kpi.short} ≥ {d['target']:g} % "
-        f"with {conf} confidence after selecting among {among}; total cost "
-        f"{d['total_cost']:,.0f}"
-    )
-    other = [
-        a
-        for a in d["alternatives"]
-        if {k: v for k, v in a["choice"].items() if k != "policy"}
-        != {k: v for k, v in d["choice"].items() if k != "policy"}
-    ]
-    if other:
-        a = other[0]
-        out += (
-            f"; {choice_text(a['choice'])} also meets it for "
-            f"{a['total_cost'] - d['total_cost']:,.0f} more"
-        )
-    return out + "."

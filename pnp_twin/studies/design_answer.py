@@ -26,7 +26,15 @@ from pnp_twin.twin.scenario import Scenario
 
 log = logging.getLogger(__name__)
 
-CODE = ("pnp_twin.studies.design", "pnp_twin.studies.calibrate_eval", __name__)
+CODE = (
+    "pnp_twin.studies.design",
+    "pnp_twin.studies.design_config",
+    "pnp_twin.studies.design_conditions",
+    "pnp_twin.studies.design_text",
+    "pnp_twin.studies.prices",
+    "pnp_twin.studies.calibrate_eval",
+    __name__,
+)
 
 
 def question_key(

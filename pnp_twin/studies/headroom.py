@@ -70,6 +70,10 @@ class HeadroomSettings:
     tuning_seeds: int = 3
     engine: str = "fast"
     workers: int = 1
+    backend: str = "local"
+    """Where the runs execute: ``local`` (processes, for the costly policies) or ``ray``."""
+    address: str | None = None
+    """The Ray cluster (``--address``; default RAY_ADDRESS, else a local Ray)."""
     confidence: float = 0.95
     kpi: KpiChoice = GRIPPING
     """The figure compared (``--kpi``): G, the value rate or one kind's G; the entries'
@@ -235,7 +239,7 @@ def _rates(
     """The ``settings.kpi`` figure per seed (in ``settings.workers`` processes), mean CPU per
     decision and mean measured part flow (and, into ``figure``, the figure's mean flow). Runs
     in ``store`` are read back; the others are simulated and stored as each finishes."""
-    from pnp_twin.parallel import pool_map
+    from pnp_twin.parallel import pool_map, ray_map
 
     lines = [for_replication(scenario, k) for k in range(len(seeds))]  # seed k: trace k
     jobs = [
@@ -264,7 +268,11 @@ def _rates(
     todo = [i for i, one in enumerate(found) if one is None]
     done[0] = len(jobs) - len(todo)
     costly = ":" in spec or spec.strip().lower() == "lookahead"  # rules take milliseconds
-    if costly and settings.workers > 1 and len(todo) > 1:
+    if settings.backend == "ray" and todo:  # every run a Ray task (same seeds, same numbers)
+        ray_map(
+            _one_indexed, [(i, jobs[i]) for i in todo], keep, settings.workers, settings.address
+        )
+    elif costly and settings.workers > 1 and len(todo) > 1:
         pool_map(_one_indexed, [(i, jobs[i]) for i in todo], keep, settings.workers)
     else:
         for i in todo:

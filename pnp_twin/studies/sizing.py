@@ -560,6 +560,9 @@ def run_size(
     sizing["layout"] = layout_summary(plan, layout)
     sizing["layout"]["text"] = layout_text(sizing["layout"], scenario)
     sizing["text"] = sizing["layout"]["text"] + " " + sizing["text"]
-    write_records(out, replace(showcase_spec(plan, sizing), engine=options.engine))
+    shown = replace(showcase_spec(plan, sizing), engine=options.engine)
+    write_records(out, shown)
     write_json(sizing, out / "sizing.json", keep_nan=True)
+    # not in sizing.json: the answer's line, rule and first seed (--write-scenario's)
+    sizing["showcase_spec"] = shown if sizing["answer"] is not None else None
     return tables, sizing

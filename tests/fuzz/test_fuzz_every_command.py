@@ -75,7 +75,7 @@ SEEDS: dict[str, list[str]] = {  # one small working command line per command
     "task score": ["task", "score", "baseline", "-p", "SD", "--seeds", "2", "--duration", "5"],
 }  # fmt: skip
 
-INPUT_OPTIONS = {"scenario", "targets", "costs", "study_dir", "task", "policy", "mix"}
+INPUT_OPTIONS = {"scenario", "targets", "costs", "study_dir", "task", "policy", "mix", "baseline"}
 OUTPUT_OPTIONS = {"out", "events", "spans", "report", "xlsx", "gif", "write_scenario"}
 OUTPUT_FLAGS = {"o", *(n.replace("_", "-") for n in OUTPUT_OPTIONS)}
 POLICY = "class P:\n    def reset(self, robots, rng): pass\n    def choose(self, d): return 0\n"

@@ -144,3 +144,29 @@ def test_ray_backend_refuses_an_unreachable_address(specs):
     with pytest.raises(ParallelError, match=r"^--address 127.0.0.1:1: cannot connect to Ray"):
         run_specs(specs, print, backend="ray", workers=2, address="127.0.0.1:1")
     assert time.monotonic() - started < 30
+
+
+def test_one_executor_keeps_its_pool_and_gives_the_same_rows(specs, monkeypatch):
+    """Executor: short batches in-process (a pool's trips would cost more), longer ones in
+    one pool kept across batches, in chunks; the rows are the same either way."""
+    from pnp_twin.studies import backends
+    from pnp_twin.studies.backends import Executor, chunks
+
+    assert [len(c) for c in chunks(list(range(20)), 2)] == [5, 5, 5, 5]
+    assert [len(c) for c in chunks(list(range(3)), 2)] == [1, 1, 1]
+    serial = collect(specs, workers=1)
+    with Executor("local", 2) as ex:  # runs of a few ms: never worth a pool
+        rows: list = []
+        ex.run(specs, rows.append)
+        assert ex._pool is None
+    assert {r["run_id"]: {k: v for k, v in r.items() if k != "wall_time"} for r in rows} == serial
+    monkeypatch.setattr(backends, "POOL_WORTH", 0.0)  # every batch worth a pool
+    with Executor("local", 2) as ex:
+        first: list = []
+        ex.run(specs[:3], first.append)
+        pool = ex._pool
+        second: list = []
+        ex.run(specs[3:], second.append)
+        assert pool is not None and ex._pool is pool  # one pool for both batches
+    both = {r["run_id"]: {k: v for k, v in r.items() if k != "wall_time"} for r in first + second}
+    assert both == serial

@@ -50,7 +50,8 @@ def test_asking_again_reuses_the_stored_flows(found: tuple[Path, dict]) -> None:
     folder, first = found
     sc = load_scenario(BASELINE, overrides=LINE)
     again = run_capacity(sc, folder, 80.0, 0.9, ["SD"], 4, 1, "simpy")
-    assert again["simulated"] < again["evaluated"] and again["replayed"] > 0
+    assert again["runs_simulated"] < again["runs_replayed"] and again["runs_replayed"] > 0
+    assert "simulated" not in again and "replayed" not in again  # those counted flows
     assert again["ci_low"] >= first["ci_low"]  # a lower confidence promises more, not less
     assert json.loads((folder / "capacity.json").read_text())["confidence"] == 0.9
 
@@ -117,8 +118,9 @@ def test_the_json_and_sentence_say_which_rule_the_promise_is_for() -> None:
         "search": {"max_rate": "found", "ci_low": "found", "ci_high": "found"},
     }  # fmt: skip
     text = capacity_text(c)
-    assert "running A, 3.98 parts/s is met with 95 % confidence" in text
-    assert "(B by the mean)" in text
+    assert "running A you can promise 3.98 parts/s at G ≥ 80 % with 95 % confidence" in text
+    assert "after picking the rule; the mean (B's) crosses at 5 parts/s" in text
+    assert "above 8.9 parts/s the line misses it with 95 % confidence" in text
 
 
 def test_with_two_rules_the_promise_holds_for_its_rule_with_other_seeds(tmp_path: Path) -> None:

@@ -107,7 +107,7 @@ def test_vary_and_cost_file_mistakes_are_one_line(tmp_path: Path) -> None:
     with pytest.raises(StudyError, match="lost_part_cost is missing"):
         read_costs(bad)
     bad.write_text("robot_price = -1\nbelt_price = 1\nhours = 1\nlost_part_cost = 0\n")
-    with pytest.raises(StudyError, match="must be a number >= 0"):
+    with pytest.raises(StudyError, match="robot_price = -1 is not allowed; give a number from 0"):
         read_costs(bad)
 
 

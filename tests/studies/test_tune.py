@@ -85,3 +85,21 @@ def test_bad_questions_are_one_line_and_write_nothing(
     lines = text.strip().splitlines()
     assert len(lines) == 1 and message in lines[0]
     assert not out.exists()
+
+
+def test_the_tuned_line_written_as_a_scenario_runs_as_the_answer_promised(
+    tmp_path: Path,
+) -> None:
+    """--write-scenario: the line with the tuned policy and the first evaluation seed;
+    `run` on it gives that seed's G exactly (issue #32)."""
+    chosen = tmp_path / "tuned.toml"
+    args = ["--strategy", "share", "--out", str(tmp_path / "t"), "--write-scenario", str(chosen)]
+    code, text = tune(tmp_path, *args)
+    assert code == 0, text
+    data = json.loads(text)
+    line = load_scenario(chosen)
+    assert line.policy == data["policy"] and line.seed == data["seeds"][0]
+    first = simulate(line, make_policy(line.policy, line.robots.count)).kpis["gripping_rate"]
+    sc = load_scenario("paper_baseline", {"duration": 40.0, "warmup": 8.0})
+    same = simulate(sc, make_policy(data["policy"], 4), seed=data["seeds"][0])
+    assert first == same.kpis["gripping_rate"]
