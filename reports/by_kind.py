@@ -4,25 +4,17 @@ folder's own files, as the command itself wrote it."""
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from pnp_twin.reports.load import ReportError
+from pnp_twin.reports.load import read_json
 from pnp_twin.twin.folder_kind import folder_kind
 from pnp_twin.twin.output import write_text
 
 
 def _json(folder: Path, name: str) -> dict[str, Any]:
-    path = folder / name
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        raise ReportError(f"{path}: cannot be read ({e}); the study did not finish") from None
-    if not isinstance(data, dict):
-        raise ReportError(f"{path}: is not a study summary")
-    return data
+    return read_json(folder / name)
 
 
 def _headroom(folder: Path, out: Path) -> Path:
