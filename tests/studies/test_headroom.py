@@ -83,7 +83,8 @@ def test_the_table_and_the_answer(tmp_path: Path) -> None:
     code, stdout, stderr = run("headroom", "paper_baseline", *FAST, "--mix", "SD",
                                "--out", str(tmp_path / "s"))  # fmt: skip
     assert code == 0, stderr
-    assert "lookahead" in stdout and "best rule" in stdout and "clairvoyant one-step bound" in stdout
+    assert "lookahead" in stdout and "best rule" in stdout
+    assert "clairvoyant one-step bound" in stdout
     assert "not every possible controller" in stderr
 
 
