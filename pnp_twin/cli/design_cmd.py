@@ -100,9 +100,9 @@ def design_cmd(
     if not vary and not policy:
         raise UserError("--vary: give at least one field to vary, e.g. --vary robots.count=3:8")
     traces = len(trace_files(sc))
-    if traces > 1 and max_replications > traces:  # trace k in replication k: each once
+    capped = traces > 1 and max_replications > traces  # trace k in replication k: each once
+    if capped:
         max_replications, replications = traces, min(replications, traces)
-        note(f"feeder.trace: {traces} traces, so at most {traces} replications (trace k each)")
     check_design(
         sc,
         target,
@@ -121,6 +121,8 @@ def design_cmd(
     if write_scenario is not None:
         check_scenario_out(write_scenario, inputs, "--write-scenario")
     runner = executor(backend, workers or (os.cpu_count() or 1), address)
+    if capped:  # said once everything is checked: a refusal stays one line
+        note(f"feeder.trace: {traces} traces, so at most {traces} replications (trace k each)")
     with runner:
         result = run_locked(
             out,
