@@ -27,7 +27,7 @@ from pnp_twin.cli.app import (
     WorkersOpt,
     app,
 )
-from pnp_twin.cli.claim import inputs_of
+from pnp_twin.cli.claim import check_folder, inputs_of
 from pnp_twin.cli.console import note
 from pnp_twin.cli.decision_opts import (
     AcrossOpt,
@@ -121,6 +121,7 @@ def design_cmd(
     if write_scenario is not None:
         check_scenario_out(write_scenario, inputs, "--write-scenario")
     runner = executor(backend, workers or (os.cpu_count() or 1), address)
+    check_folder(out, "design", inputs)  # claimed below; checked now, before any note
     if capped:  # said once everything is checked: a refusal stays one line
         note(f"feeder.trace: {traces} traces, so at most {traces} replications (trace k each)")
     with runner:
