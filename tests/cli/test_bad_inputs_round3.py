@@ -61,6 +61,11 @@ CASES: dict[str, Case] = {
         ["--out h", "pnp-twin headroom"],
         {"l.toml": LINE, "h/headroom.json": "{}", "h/report.html": "x"},
     ),
+    "design of a trace folder into a headroom folder (one line, no note first)": Case(
+        ["design", "s.toml", "--out", "h", "--target", "80", "--vary", "robots.arm_speed=2,3"],
+        ["--out h", "pnp-twin headroom"],
+        {**shifts(), "h/headroom.json": "{}"},
+    ),
     "sweep into a tune folder": Case(
         ["sweep", "l.toml", "--out", "t"],
         ["--out t", "pnp-twin tune"],
