@@ -188,14 +188,15 @@ def torchrl_env(
     threads: int | None = None,
     **options: Any,
 ) -> PickPlaceTorchRLEnv:
-    """A TorchRL env of ``num_envs`` lines of a task (a name of the task suite, its line,
+    """A TorchRL env of ``num_envs`` lines of a task (a name of the task suite or a versioned
+    id such as ``slow_robot-v1``: its line,
     termination, duration and warm-up) or of a scenario (a shipped name, a file or a
     :class:`Scenario`); ``options`` are :class:`~pnp_twin.learning.envs.options.EnvOptions`'
     (``termination``, ``rules``, ``team_reward``, ``skip_noops``, ``overrides``, ...)."""
-    from pnp_twin.learning.tasks import TASKS, make_env
+    from pnp_twin.learning.tasks import BY_ID, TASKS, make_env
 
     name = task_or_scenario if isinstance(task_or_scenario, str) else None
-    if name is not None and name.strip().lower() in TASKS:
+    if name is not None and name.strip().lower() in {**TASKS, **BY_ID}:
         vec = make_env(name, "parallel_vector", num_envs=num_envs, threads=threads, **options)
     else:
         vec = PickPlaceParallelVectorEnv(num_envs, task_or_scenario, threads=threads, **options)
