@@ -44,9 +44,15 @@ GROUP = "agents"
 class PickPlaceTorchRLEnv(EnvBase):
     """A TorchRL env over the multi-agent compiled vector env (see the module docstring)."""
 
-    def __init__(self, env: PickPlaceParallelVectorEnv, device: str | torch.device = "cpu"):
+    def __init__(
+        self, env: PickPlaceParallelVectorEnv, device: str | torch.device = "cpu",
+        flatten: bool = False,
+    ):  # fmt: skip
         super().__init__(device=device, batch_size=torch.Size([env.num_envs]))
         self.vec = env
+        self.flatten = flatten
+        """Observations as vectors, (E, A, C*H*w), and the state (E, C*H*W): what MLPs (and
+        BenchMARL's models) take."""
         self.n_agents = env.n_agents
         self.rules = tuple(env.rules)
         self.group_map = {GROUP: list(env.possible_agents)}
@@ -58,6 +64,8 @@ class PickPlaceTorchRLEnv(EnvBase):
         e, a, k = self.vec.num_envs, self.n_agents, len(self.rules)
         window = tuple(self.vec.single_observation_space.shape)
         belt = tuple(self.vec.state_space.shape)
+        if self.flatten:
+            window, belt = (int(np.prod(window)),), (int(np.prod(belt)),)
         high = float(self.vec.single_observation_space.high.max())
         dev = self.device
         self.observation_spec = Composite(
@@ -139,6 +147,9 @@ class PickPlaceTorchRLEnv(EnvBase):
         e, a, dev = self.vec.num_envs, self.n_agents, self.device
         mask = torch.as_tensor(info["action_mask"].astype(bool), device=dev)
         self.action_key_spec.update_mask(mask.clone())
+        state = torch.as_tensor(self.vec.state(), dtype=torch.float32, device=dev)
+        if self.flatten:
+            obs, state = obs.reshape(e, a, -1), state.reshape(e, -1)
         agents: dict[str, torch.Tensor] = {
             "observation": torch.as_tensor(obs, dtype=torch.float32, device=dev),
             "action_mask": mask,
@@ -152,7 +163,7 @@ class PickPlaceTorchRLEnv(EnvBase):
         return TensorDict(
             {
                 GROUP: TensorDict(agents, batch_size=(e, a), device=dev),
-                "state": torch.as_tensor(self.vec.state(), dtype=torch.float32, device=dev),
+                "state": state,
                 "tau": _column(info["tau"], dev),
                 "gripping_rate": _column(info["gripping_rate"], dev),
                 "done": t | u,
@@ -186,13 +197,15 @@ def torchrl_env(
     *,
     device: str | torch.device = "cpu",
     threads: int | None = None,
+    flatten: bool = False,
     **options: Any,
 ) -> PickPlaceTorchRLEnv:
     """A TorchRL env of ``num_envs`` lines of a task (a name of the task suite or a versioned
     id such as ``slow_robot-v1``: its line,
     termination, duration and warm-up) or of a scenario (a shipped name, a file or a
     :class:`Scenario`); ``options`` are :class:`~pnp_twin.learning.envs.options.EnvOptions`'
-    (``termination``, ``rules``, ``team_reward``, ``skip_noops``, ``overrides``, ...)."""
+    (``termination``, ``rules``, ``team_reward``, ``skip_noops``, ``overrides``, ...);
+    ``flatten=True`` gives each observation as a vector (for MLPs and BenchMARL)."""
     from pnp_twin.learning.tasks import BY_ID, TASKS, make_env
 
     name = task_or_scenario if isinstance(task_or_scenario, str) else None
@@ -200,7 +213,7 @@ def torchrl_env(
         vec = make_env(name, "parallel_vector", num_envs=num_envs, threads=threads, **options)
     else:
         vec = PickPlaceParallelVectorEnv(num_envs, task_or_scenario, threads=threads, **options)
-    return PickPlaceTorchRLEnv(vec, device)
+    return PickPlaceTorchRLEnv(vec, device, flatten)
 
 
 __all__ = ["GROUP", "PickPlaceTorchRLEnv", "torchrl_env"]
