@@ -81,3 +81,11 @@ def test_torchrl_ippo_runs_end_to_end():
     assert len(log) == 4 and all(np.isfinite(r["loss"]) for r in log)
     assert sum(r["episodes"] for r in log) >= 16  # every line ended at least once
     assert time.perf_counter() - t0 < 60.0
+
+
+def test_flat_observations_for_mlps():
+    env = torchrl_env("slow_robot-v1", num_envs=2, flatten=True, **SHORT)
+    check_env_specs(env, seed=0)
+    td = env.reset()
+    assert td["agents", "observation"].shape == (2, 4, 8 * 7)
+    assert td["state"].shape == (2, 8 * 64)
