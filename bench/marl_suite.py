@@ -49,7 +49,7 @@ def references(task_name: str, headroom: Path) -> dict[str, Any]:
 def table(out: dict[str, Any]) -> str:
     s = out["settings"]
     lines = [
-        f"Suite {', '.join(out['tasks'])}; {s['steps']:,} env steps per run, training seeds "
+        f"Suite {', '.join(out['per_task'])}; {s['steps']:,} env steps per run, training seeds "
         f"{s['train_seeds']}; gains in points over each task's best rule; normalized = share of "
         "the clairvoyant one-step bound's gain (0: best rule, 1: bound)",
         "",
@@ -64,7 +64,7 @@ def table(out: dict[str, Any]) -> str:
             f"{g['mean_ci'][1]:+.2f}] | {n['iqm']:+.2f} [{n['iqm_ci'][0]:+.2f}, "
             f"{n['iqm_ci'][1]:+.2f}] |"
         )
-    refs = [out["per_task"][t]["references"] for t in out["tasks"]]
+    refs = [out["per_task"][t]["references"] for t in out["per_task"]]
     for ref in ("lookahead", "bound"):
         gains = [r[ref]["gain"] for r in refs]
         shares = [r[ref]["gain"] / r["bound"]["gain"] for r in refs]
@@ -73,6 +73,18 @@ def table(out: dict[str, Any]) -> str:
             f"{np.mean(gains):+.2f} | mean over tasks {np.mean(shares):+.2f} |"
         )
     return "\n".join(lines)
+
+
+def aggregates(out: dict[str, Any], algos: list[str]) -> dict[str, Any]:
+    """Per algorithm, IQM and mean of the gain and the normalized gain over (task, run)."""
+    got: dict[str, Any] = {}
+    for algo in algos:
+        by = {m: {t: [r[m] for k, r in out["per_task"][t]["runs"].items()
+                      if k.startswith(f"{algo}/")] for t in out["per_task"]}
+              for m in ("gain", "normalized")}  # fmt: skip
+        if any(by["gain"].values()):
+            got[algo] = {m: aggregate(v) for m, v in by.items()}
+    return got
 
 
 def main() -> None:
@@ -88,7 +100,8 @@ def main() -> None:
     ap.add_argument("--table", action="store_true", help="print the table of --out and stop")
     args = ap.parse_args()
     out: dict[str, Any] = json.loads(args.out.read_text()) if args.out.is_file() else {}
-    if args.table:
+    if args.table:  # from the runs held so far
+        out["aggregate"] = aggregates(out, _csv(args.algos))
         print(table(out))
         return
     torch.set_num_threads(1)
@@ -131,12 +144,7 @@ def main() -> None:
                 print(f"{task.id} {key}: G {values.mean():.2f}, gain {gain:+.2f}, "
                       f"{time.process_time() - t0:.0f} s CPU", flush=True)  # fmt: skip
                 args.out.write_text(json.dumps(out, indent=1))
-    out["aggregate"] = {}
-    for algo in algos:
-        by = {m: {t.id: [r[m] for k, r in per_task[t.id]["runs"].items()
-                         if k.startswith(f"{algo}/")] for t in tasks}
-              for m in ("gain", "normalized")}  # fmt: skip
-        out["aggregate"][algo] = {m: aggregate(v) for m, v in by.items()}
+    out["aggregate"] = aggregates(out, algos)
     args.out.write_text(json.dumps(out, indent=1))
     print(table(out))
 

@@ -45,7 +45,7 @@ def test_every_shipped_model_is_pinned():
     assert sorted(PINS) == shipped_models()
 
 
-@pytest.mark.parametrize("name", ["paper_baseline__student", "student_general"])
+@pytest.mark.parametrize("name", ["paper_baseline__student", "student_general", "student_any"])
 def test_flushed_student_decides_as_before(name):
     """The decisions of the weights as they were shipped before the flush (digest pinned by
     ``bench/flush_models.py --pin``) are those of the flushed model."""
