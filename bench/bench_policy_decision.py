@@ -62,7 +62,7 @@ def run(model: str, numpy_forward: bool, scenario) -> tuple[float, int, int, pd.
     return policy.spent / policy.calls * 1e6, policy.torch_decisions, policy.calls, parts
 
 
-STUDENTS = ("paper_baseline__student", "student_general")
+STUDENTS = ("paper_baseline__student", "student_general", "student_any")
 RATIO_TARGET = 0.1
 
 
