@@ -101,3 +101,13 @@ def test_cli_runs_marl_policy_and_rejects_bad_ones(trained, tmp_path):
     broken = runner.invoke(app, ["run", "paper_baseline", "--policy", f"marl:{bad}"])
     assert broken.exit_code == 2 and "checkpoint:" in broken.output
     assert len(broken.output.strip().splitlines()) == 1
+
+
+def test_evaluations_during_training_change_nothing(trained):
+    """Same seed, same weights, with or without the evaluation runs in between."""
+    result, _ = trained
+    plain = train(PPOConfig(**{**CFG.__dict__, "eval_every": 0}))
+    want = result.policy.actor.state_dict()
+    for k, v in plain.policy.actor.state_dict().items():
+        assert torch.equal(v, want[k]), k
+    assert "eval_G" not in plain.log[-1] and "eval_G" in result.log[-1]
