@@ -11,11 +11,21 @@ once through the numpy forward pass, interleaved round by round; a decision is t
 ratio, the 100 us target beside it, the share of decisions numpy handed to torch (near
 ties; all of them for a model numpy does not run, e.g. ``single``'s 250,000 weights), and
 checks that both runs made the same decisions (the parts table, rule by rule).
+
+    python bench/bench_policy_decision.py --students [--duration 120] [--rounds 3]
+
+The students against their teacher, side by side in this one process: each round runs the
+lookahead controller (its defaults, ``policy_stats``' CPU per decision) and then each student
+(``process_time`` around ``choose``) on the same seed (100 + round; one uncounted run of each
+first loads the compiled code), and prints each one's CPU us per decision (median round),
+the **ratio** of the student's to the lookahead's (target <= 0.1), and the CPU model (as
+``lscpu`` names it).
 """
 
 from __future__ import annotations
 
 import argparse
+import platform
 import statistics
 import time
 from pathlib import Path
@@ -52,12 +62,83 @@ def run(model: str, numpy_forward: bool, scenario) -> tuple[float, int, int, pd.
     return policy.spent / policy.calls * 1e6, policy.torch_decisions, policy.calls, parts
 
 
+STUDENTS = ("paper_baseline__student", "student_general", "student_any")
+RATIO_TARGET = 0.1
+
+
+def cpu_model() -> str:
+    """The CPU's model name, as ``lscpu`` shows it (``/proc/cpuinfo``)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def cpu_us(spec: str, scenario, seed: int) -> float:  # type: ignore[no-untyped-def]
+    """CPU us per decision of one run: the lookahead's own stats, a student's ``choose``."""
+    from pnp_twin.policies.registry import make_policy
+
+    policy = make_policy(spec)
+    stats = getattr(policy, "stats", None)
+    spent = [0.0, 0]
+    if stats is None:
+        inner = policy.choose
+
+        def timed(decision):  # type: ignore[no-untyped-def]
+            t0 = time.process_time()
+            k = inner(decision)
+            spent[0] += time.process_time() - t0
+            spent[1] += 1
+            return k
+
+        policy.choose = timed  # type: ignore[method-assign]
+    simulate(scenario, policy, seed=seed, engine="fast")
+    if stats is not None:
+        return 1000.0 * float(stats()["cpu_ms_per_decision"])
+    return 1e6 * spent[0] / max(spent[1], 1)
+
+
+def students(duration: float, rounds: int) -> None:
+    import torch
+
+    torch.set_num_threads(1)
+    scenario = with_overrides(
+        load_scenario("paper_baseline"), {"duration": duration, "warmup": 10.0}
+    )
+    specs = ["lookahead", *(f"hdqn:{m}" for m in STUDENTS)]
+    short = with_overrides(scenario, {"duration": 30.0})
+    for spec in specs:  # uncounted: loads the compiled code
+        cpu_us(spec, short, 99)
+    got: dict[str, list[float]] = {s: [] for s in specs}
+    for r in range(rounds):
+        for spec in specs:
+            got[spec].append(cpu_us(spec, scenario, 100 + r))
+    look = statistics.median(got["lookahead"])
+    print(f"CPU: {cpu_model()}; paper_baseline, {duration:g} s simulated, {rounds} rounds")
+    print(f"{'lookahead (K=16, H=1)':32s} {look:8.1f} us CPU per decision")
+    for spec in specs[1:]:
+        us = statistics.median(got[spec])
+        ratio = us / look
+        verdict = "meets" if ratio <= RATIO_TARGET else "misses"
+        print(
+            f"{spec:32s} {us:8.1f} us CPU per decision; ratio to the lookahead {ratio:.3f} "
+            f"(target <= {RATIO_TARGET:g}: {verdict})"
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--models", nargs="+", default=["async", "sync", "single"])
     ap.add_argument("--duration", type=float, default=120.0)
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--students", action="store_true", help="students vs the lookahead's CPU")
     args = ap.parse_args()
+    if args.students:
+        students(args.duration, args.rounds)
+        return
     scenario = with_overrides(
         load_scenario("paper_baseline"), {"duration": args.duration, "warmup": 10.0}
     )

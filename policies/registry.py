@@ -17,6 +17,7 @@ Factory = Callable[[str], Policy]
 PREFIXED: dict[str, str] = {
     "hdqn": "pnp_twin.policies.hdqn.policy:from_spec",
     "sb3": "pnp_twin.policies.sb3_policy:from_spec",
+    "marl": "pnp_twin.policies.marl_policy:from_spec",
     "lookahead": "pnp_twin.policies.lookahead:from_spec",
     "py": "pnp_twin.policies.user_policy:from_spec",
     "share": "pnp_twin.policies.balancing:share_policy",

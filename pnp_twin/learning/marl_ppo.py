@@ -93,11 +93,21 @@ class PPOConfig:
     """A shorter run than the task's (tests, the quick-start); None: the task's."""
     threads: int = 1
     """torch threads."""
+    eval_every: int = 0
+    """Env steps between evaluations of the greedy policy (0: none): ``eval_G`` in the log,
+    at the first update at or past each multiple."""
+    eval_seeds: int = 4
+    """Evaluation runs per evaluation, on validation line seeds 500,000 + i (never the
+    task's training or evaluation seeds)."""
+    eval_duration: float = 120.0
+    """Feeding time of an evaluation run, s (short: G at fixed intervals costs little)."""
 
     def check(self) -> None:
         if self.algo not in ALGOS:
             raise MarlError(f"algo: '{self.algo}' is not one of {', '.join(ALGOS)}")
         get_task(self.task)
+        if int(self.eval_every) < 0 or int(self.eval_seeds) < 2 or self.eval_duration <= 10.0:
+            raise MarlError("eval_every >= 0, eval_seeds >= 2 and eval_duration > 10 s, please")
         for name in ("total_steps", "num_envs", "rollout", "epochs", "minibatches", "hidden"):
             if int(getattr(self, name)) < 1:
                 raise MarlError(f"{name}: give an integer >= 1")
@@ -137,7 +147,8 @@ class Features:
         self.n = env.n_agents
         self.k = len(env.rules)
         self.masked = masked
-        self.window = int(np.prod(env.single_observation_space.shape))
+        self.window_shape = tuple(int(x) for x in env.single_observation_space.shape)
+        self.window = int(np.prod(self.window_shape))
         self.state_size = int(np.prod(env.state_space.shape))
         self.eye = torch.eye(self.n)
         self.obs_size = self.window + self.n + (self.k if masked else 0)
@@ -285,6 +296,7 @@ def train(
     obs, info = _reset_lines(env, rng, task.train_seeds, np.ones(e, dtype=bool))
     result = TrainResult(config, AgentPolicy(actor, feats), critic)
     iterations = max(1, config.total_steps // (e * t_len))
+    next_eval = config.eval_every
     for it in range(iterations):
         steps: list[TensorDict] = []
         rewards = torch.zeros(t_len, e, n)
@@ -356,6 +368,11 @@ def train(
             "train_G": float(np.mean(grips)) if grips else float("nan"),
             **stats,
         }
+        if config.eval_every and (result.env_steps >= next_eval or it == iterations - 1):
+            row.update(evaluate_now(config, result.policy))
+            while next_eval <= result.env_steps:
+                next_eval += config.eval_every
+        row["wall_s"] = time.perf_counter() - start_wall
         result.log.append(row)
         if progress is not None:
             progress(row)
@@ -363,6 +380,24 @@ def train(
     result.cpu_s = time.process_time() - start_cpu
     env.close()
     return result
+
+
+VALIDATION_SEED = 500_000
+"""First validation line seed (evaluations during training)."""
+
+
+def evaluate_now(config: PPOConfig, policy: AgentPolicy) -> dict[str, float]:
+    """The greedy policy's mean G (95 % t-interval) on ``config.eval_seeds`` validation runs of
+    ``config.eval_duration`` s (torch's RNG untouched, so training goes on as it would)."""
+    from pnp_twin.learning.marl_eval import rates
+    from pnp_twin.twin.stats import t_interval
+
+    seeds = range(VALIDATION_SEED, VALIDATION_SEED + config.eval_seeds)
+    g = rates(config.task, policy.act, list(seeds), duration=config.eval_duration,
+              rules=config.rules, skip_noops=config.skip_noops)  # fmt: skip
+    torch.set_num_threads(config.threads)
+    mean, low, high = t_interval(g, 0.95)
+    return {"eval_G": mean, "eval_G_low": low, "eval_G_high": high}
 
 
 __all__ = ["ALGOS", "AgentPolicy", "MarlError", "PPOConfig", "TrainResult", "train"]

@@ -43,6 +43,7 @@ from pnp_twin.policies.hdqn.checkpoint import META
 from pnp_twin.policies.hdqn.features import DecisionFeatures
 from pnp_twin.policies.hdqn.features import size as feature_size
 from pnp_twin.policies.hdqn.policy import HDQNPolicy
+from pnp_twin.policies.hdqn.ranges import ranges_of
 from pnp_twin.policies.lookahead import TRIED, Lookahead, better_base, parse
 from pnp_twin.twin.camera import BeltCamera
 from pnp_twin.twin.decision import Decision, RobotSpec
@@ -411,6 +412,7 @@ def meta_for(args: StudentArgs, agent: DQNAgent, base: Scenario, counters: dict[
         "train_args": {
             **asdict(args),
             "lines": [ln.label for ln in args.lines],
+            "ranges": ranges_of([ln.load() for ln in args.lines]),
             "mode": "async",
         },
         "device": "cpu",

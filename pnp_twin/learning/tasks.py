@@ -24,9 +24,11 @@ prints it.
 
 from __future__ import annotations
 
+import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import partial
+from importlib import resources
 from typing import Any
 
 import numpy as np
@@ -72,6 +74,13 @@ class Task:
     eval_seeds: range = EVAL_SEEDS
     metric: str = field(default="gripping_rate")
     """The KPI scored: G over the command line's window (parts fed after the warm-up)."""
+    version: int = 1
+    """A released version never changes (its file neither); a changed task is a new one."""
+
+    @property
+    def id(self) -> str:
+        """The versioned name, ``slow_robot-v1``: what results should cite."""
+        return f"{self.name}-v{self.version}"
 
     def settings(self, duration: float | None = None) -> dict[str, Any]:
         """Every override of the task's line (``duration``: a shorter run, for tests)."""
@@ -100,6 +109,8 @@ class Task:
     def to_json(self) -> dict[str, Any]:
         return {
             "name": self.name,
+            "version": self.version,
+            "id": self.id,
             "description": self.description,
             "scenario": self.scenario,
             "overrides": dict(self.overrides),
@@ -121,46 +132,63 @@ def _yaml(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-SUITE: tuple[Task, ...] = (
-    Task("baseline", "The paper's line: 4 robots, arm 3 m/s, 10 parts/s; the rules end close."),
-    Task(
-        "high_load",
-        "15 parts/s with arms at 4 m/s: more parts than the robots can take, more to choose.",
-        overrides=(("feeder.rate", 15.0), ("robots.arm_speed", 4.0)),
-    ),
-    Task(
-        "slow_robot",
-        "The first robot's arm at 1.5 m/s: the others must cover for it.",
-        overrides=(("robots.overrides", [{"robot": 1, "arm_speed": 1.5}]),),
-    ),
-    Task(
-        "breakdowns",
-        "The baseline with breakdowns (MTBF 300 s, MTTR 30 s per robot).",
-        scenario="breakdowns",
-    ),
-    Task(
-        "bursty",
-        "Normal gaps with CV 2 at 10 parts/s fed: bursts and lulls.",
-        overrides=(("feeder.arrival", "normal"), ("feeder.cv", 2.0), ("feeder.rate", 13.956)),
-    ),
-    Task(
-        "long_workspaces",
-        "Workspaces 0.5 m long (belt 0.3-2.3 m): longer reach, more parts in view to plan.",
-        overrides=(("robots.workspace_length", 0.5),),
-    ),
-)
-"""The suite, in the order ``pnp-twin task list`` prints it."""
+def _read_task(text: str, where: str) -> Task:
+    """A task from its TOML file (the keys :meth:`Task.to_json` writes, plus ``version``)."""
+    data = tomllib.loads(text)
+    known = {"name", "version", "description", "scenario", "termination", "duration",
+             "warmup", "train_seeds", "eval_seeds", "metric", "overrides"}  # fmt: skip
+    extra = sorted(set(data) - known)
+    if extra:
+        raise TaskError(f"task file {where}: unknown key '{extra[0]}'")
+    first, last = data.pop("train_seeds"), data.pop("eval_seeds")
+    return Task(
+        **{k: v for k, v in data.items() if k != "overrides"},
+        overrides=tuple(data.get("overrides", {}).items()),
+        train_seeds=range(int(first[0]), int(first[1]) + 1),
+        eval_seeds=range(int(last[0]), int(last[1]) + 1),
+    )
+
+
+def _load_suite() -> tuple[Task, ...]:
+    """Every task file of :mod:`pnp_twin.learning.suite`, in :data:`ORDER`, then by version."""
+    root = resources.files("pnp_twin.learning.suite")
+    tasks = [
+        _read_task(f.read_text(encoding="utf-8"), f.name)
+        for f in root.iterdir()
+        if f.name.endswith(".toml")
+    ]
+    for t in tasks:
+        if t.name not in ORDER:
+            raise TaskError(f"task file {t.id}: '{t.name}' is not in the suite's ORDER")
+    return tuple(sorted(tasks, key=lambda t: (ORDER.index(t.name), t.version)))
+
+
+ORDER = ("baseline", "high_load", "slow_robot", "breakdowns", "bursty", "long_workspaces")
+"""The suite's tasks, in the order ``pnp-twin task list`` prints them."""
+VERSIONS: tuple[Task, ...] = _load_suite()
+"""Every version of every task (``pnp_twin/learning/suite/NAME-vN.toml``)."""
+LATEST: dict[str, Task] = {t.name: t for t in VERSIONS}
+SUITE: tuple[Task, ...] = tuple(LATEST[n] for n in ORDER)
+"""The suite: each task's newest version, in :data:`ORDER`."""
 
 TASKS: dict[str, Task] = {t.name: t for t in SUITE}
+"""Tasks by name (the newest version)."""
+BY_ID: dict[str, Task] = {t.id: t for t in VERSIONS}
+"""Every version by its id (``slow_robot-v1``)."""
 
 
 def get_task(name: str | Task) -> Task:
-    """The task named ``name`` (a :class:`Task` is returned as it is)."""
+    """The task named ``name`` (its newest version) or with id ``name`` (``slow_robot-v1``);
+    a :class:`Task` is returned as it is."""
     if isinstance(name, Task):
         return name
-    task = TASKS.get(str(name).strip().lower())
+    key = str(name).strip().lower()
+    task = TASKS.get(key) or BY_ID.get(key)
     if task is None:
-        raise TaskError(f"task: unknown '{clip(str(name))}'; the tasks are {', '.join(TASKS)}")
+        names = ", ".join(t.name for t in SUITE)
+        raise TaskError(
+            f"task: unknown '{clip(str(name))}'; the tasks are {names} (or NAME-vN, a version)"
+        )
     return task
 
 

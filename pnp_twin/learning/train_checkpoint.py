@@ -25,6 +25,7 @@ from pnp_twin.policies.hdqn.checkpoint import (
     STATE,
     CheckpointError,
     check_weights,
+    flush_subnormals,
     load_into,
     read_tensors,
     resolve,
@@ -61,10 +62,13 @@ def save_checkpoint(
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    _atomic_tensors(folder / MODEL, {f"q.{k}": v for k, v in agent.q.state_dict().items()})
+    online = {f"q.{k}": v for k, v in agent.q.state_dict().items()}
+    # inference reads model.safetensors, flushed; resuming reads the exact weights (online.*)
+    _atomic_tensors(folder / MODEL, flush_subnormals(online))
     opt = agent.optimizer.state_dict()
     if train_state:
-        tensors = {f"target.{k}": v for k, v in agent.target.state_dict().items()}
+        tensors = {f"online.{k}": v for k, v in online.items()}
+        tensors.update({f"target.{k}": v for k, v in agent.target.state_dict().items()})
         for idx, state in opt["state"].items():
             for key, value in state.items():
                 tensors[f"opt.{idx}.{key}"] = torch.as_tensor(value)
@@ -93,7 +97,7 @@ def load_trainer(
     """Rebuild the training agent of a checkpoint: the online weights copied into the target;
     with ``train_state`` the target, optimizer and torch RNG as saved (to resume training)."""
     path = resolve(folder)
-    agent, meta = load_into(DQNAgent, path, device)
+    agent, meta = load_into(DQNAgent, path, device, flush=not train_state)
     agent.target.load_state_dict(agent.q.state_dict())
     agent.updates = int(meta.get("updates", 0))
     if train_state:
@@ -105,6 +109,10 @@ def _load_train_state(path: Path, agent: DQNAgent, meta: dict[str, Any]) -> None
     if not (path / STATE).is_file():
         raise CheckpointError(f"checkpoint: {path / STATE} is missing; cannot resume")
     tensors = read_tensors(path / STATE)
+    online = {k[7:]: v for k, v in tensors.items() if k.startswith("online.")}
+    if online:  # the exact online weights (model.safetensors has its subnormals flushed)
+        check_weights(online, {f"q.{k}": v for k, v in agent.q.state_dict().items()}, str(path))
+        agent.q.load_state_dict({k[2:]: v.to(agent.device) for k, v in online.items()})
     target = {f"target.{k}": v for k, v in agent.target.state_dict().items()}
     check_weights(
         {k: v for k, v in tensors.items() if k.startswith("target.")}, target, str(path / STATE)

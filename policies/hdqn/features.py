@@ -47,12 +47,15 @@ import numpy as np
 from pnp_twin.policies.rules import RULES
 from pnp_twin.twin.decision import Decision, RobotSpec
 
-SETS = ("student-v1", "student-v2", "student-v3", "student-v4")
+SETS = ("student-v1", "student-v2", "student-v3", "student-v4", "student-any-v1")
 """Known feature sets (``meta.json``'s ``features``); ``student-v2`` adds the deciding robot's
 second pick and is computed by the compiled pass of :mod:`.features_compiled`; ``student-v3``
 adds, per rule's pick, a second's continuation over the parts already on the belt;
-``student-v4`` a continuation until those parts have left the line."""
-TAILS = {"student-v3": False, "student-v4": True}
+``student-v4`` a continuation until those parts have left the line; ``student-any-v1`` is
+``student-v4`` for any robot count and order (:mod:`.features_any`)."""
+TAILS = {"student-v3": False, "student-v4": True, "student-any-v1": True}
+ANY_COUNT = ("student-any-v1",)
+"""The sets whose length and meaning do not depend on the robot count."""
 """The sets with a continuation tail, and whether it has the long continuation."""
 
 HORIZON = 2.0
@@ -68,6 +71,10 @@ PER_ROBOT = 4
 def size(name: str, n_rules: int, n_robots: int) -> int:
     """Length of feature set ``name``'s vector (the robot one-hot included)."""
     check(name)
+    if name in ANY_COUNT:
+        from pnp_twin.policies.hdqn import features_any
+
+        return features_any.size(n_rules)
     if name != "student-v1":
         from pnp_twin.policies.hdqn import continuation
         from pnp_twin.policies.hdqn import features_compiled as fc
@@ -97,6 +104,9 @@ class DecisionFeatures:
         self._work = np.empty(0)  # the compiled pass's scratch, grown on demand
         self._pass: Any = None  # features_compiled, imported at reset (numba) for sets past v1
         self._tail: Any = None  # continuation, the v3 / v4 tail (None: a set without it)
+        self._any: Any = None  # features_any, for a set of any robot count
+        self._v4 = np.empty(0, np.float32)  # an any-count set's student-v4 vector
+        self._params = np.zeros((0, 5))
 
     def reset(self, robots: list[RobotSpec], rate: float | None = None) -> None:
         """The run's robots and the feeder's nominal rate (None: measured from the belt)."""
@@ -108,6 +118,12 @@ class DecisionFeatures:
             self._pass = features_compiled
             self._tail = continuation if self.name in TAILS else None
             self._table = features_compiled.robot_table(self.robots)
+        if self.name in ANY_COUNT:
+            from pnp_twin.policies.hdqn import features_any
+
+            self._any = features_any
+            self._v4 = np.empty(size("student-v4", len(self.rules), len(self.robots)), np.float32)
+            self._params = features_any.robot_params(self.robots)
 
     def attach(self, belt: Any) -> None:
         self.belt = belt
@@ -182,7 +198,10 @@ class DecisionFeatures:
             need = max(need, n + self._tail.work_size(n, nb, nr))
         if self._work.shape[0] < need:
             self._work = np.empty(2 * need)
-        if out is None:  # float32: each value rounds as astype would round it
+        final = out
+        if self._any is not None:  # student-v4 first, then pooled over the robots
+            out = self._v4
+        elif out is None:  # float32: each value rounds as astype would round it
             out = np.empty(size(self.name, nr, n), np.float32)
         picked = np.array(picks, np.int64)
         base = fc.size(nr, n)
@@ -191,6 +210,15 @@ class DecisionFeatures:
         if self._tail is not None:
             busy, work = self._work[:n], self._work[n:]
             self._tail.fill(out[base:], *args[:-1], busy, work, TAILS[self.name])
+        if self._any is not None:
+            if final is None:
+                final = np.empty(size(self.name, nr, n), np.float32)
+            per_robot = fc.PER_ROBOT
+            slots = fc.slots_size(nr)
+            self._any.pool(
+                final, out, decision.robot, n, nr, fc.PER_PICK, per_robot, slots, self._params
+            )
+            return final
         return out
 
     def _belt(self, now: float) -> np.ndarray:

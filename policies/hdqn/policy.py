@@ -24,8 +24,9 @@ from pnp_twin.policies.hdqn.checkpoint import (
     resolve,
     warn_if_other_line,
 )
-from pnp_twin.policies.hdqn.features import DecisionFeatures
+from pnp_twin.policies.hdqn.features import ANY_COUNT, DecisionFeatures
 from pnp_twin.policies.hdqn.numpy_forward import NumpyQ, Unsupported
+from pnp_twin.policies.hdqn.ranges import training_ranges, warn_outside
 from pnp_twin.twin.belt import Belt
 from pnp_twin.twin.camera import BeltCamera
 from pnp_twin.twin.decision import Decision, RobotSpec
@@ -93,6 +94,9 @@ class HDQNPolicy(RuleChoosingPolicy):
         # a student of the lookahead controller also sees decision features (its extras)
         features = meta.get("features")
         self.features = None if features is None else DecisionFeatures(features, self.rules)
+        self.any_count: bool = features in ANY_COUNT
+        """A student for any robot count and order (per-robot scoring, shared weights)."""
+        self.ranges = training_ranges(meta) if self.features is not None else None
         self._rate: float | None = None
 
     @classmethod
@@ -122,7 +126,7 @@ class HDQNPolicy(RuleChoosingPolicy):
         if self._numpy is not None:
             self._input = np.ones(self._numpy.n_in, np.float32)
         n = int(self.meta["n_robots"])
-        if len(robots) != n:
+        if len(robots) != n and not self.any_count:
             raise CheckpointError(
                 f"policy: the HDQN was trained for {n} robots, the line has {len(robots)}"
             )
@@ -132,6 +136,8 @@ class HDQNPolicy(RuleChoosingPolicy):
         take the feeder's nominal rate from it."""
         if self.features is not None:
             self.features.reset(self.robots, float(scenario.feeder.rate))
+        if self.ranges is not None:
+            warn_outside(self.ranges, scenario, self.robots, f"the HDQN ({self.name})")
 
     def attach(self, belt: Belt) -> None:
         """Called by the line with its belt: build the camera for this line's geometry."""
@@ -150,8 +156,7 @@ class HDQNPolicy(RuleChoosingPolicy):
                 f"policy: this line gives observations of shape {tuple(got)}, the HDQN was "
                 f"trained on {want}; use a line with the trained belt grid and workspace size"
             )
-        lines = self.meta.get("train_args", {}).get("lines", [])
-        if self.features is None or len(lines) < 2:  # not trained across lines (their inputs)
+        if self.ranges is None:  # one training line: a line unlike it is warned of here
             warn_if_other_line(self.meta, belt, self.robots, f"the HDQN ({self.name})")
         self.camera = camera
 

@@ -65,6 +65,10 @@ def __getattr__(name: str) -> Any:
         from pnp_twin.learning.envs.vector_marl import PickPlaceParallelVectorEnv
 
         return PickPlaceParallelVectorEnv
+    if name in ("torchrl_env", "PickPlaceTorchRLEnv"):  # needs the marl extra (torchrl)
+        from pnp_twin.learning.envs import torchrl_vector
+
+        return getattr(torchrl_vector, name)
     raise AttributeError(f"module 'pnp_twin.learning.envs' has no attribute {name!r}")
 
 
