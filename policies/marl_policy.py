@@ -30,6 +30,7 @@ from pnp_twin.policies.registry import rule_names
 from pnp_twin.twin.belt import Belt
 from pnp_twin.twin.camera import BeltCamera
 from pnp_twin.twin.decision import Decision, RobotSpec
+from pnp_twin.twin.inputs import SCENARIO_BYTES, read_user_text
 from pnp_twin.twin.scenario import Scenario
 
 KIND = "marl"
@@ -53,11 +54,12 @@ REQUIRED = {
 def read_meta(folder: Path) -> dict[str, Any]:
     """``meta.json`` of a marl checkpoint, checked (one CheckpointError line if not)."""
     path = folder / META
-    if not path.is_file():
+    if not path.exists():
         raise CheckpointError(f"checkpoint: {path} is missing; give a folder saved by save_marl")
+    text = read_user_text(path, "checkpoint", SCENARIO_BYTES, CheckpointError)  # the guard
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        meta = json.loads(text)
+    except json.JSONDecodeError as e:
         raise CheckpointError(f"checkpoint: cannot read {path}: {str(e).splitlines()[0]}") from None
     if not isinstance(meta, dict):
         raise CheckpointError(f"checkpoint: {path}: must be a JSON object")
