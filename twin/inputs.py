@@ -86,7 +86,10 @@ def read_user_bytes(
     except OSError as e:
         raise error(f"{label}: cannot read '{tail(str(p))}': {e.strerror or e}") from None
     if len(data) > max_bytes:
-        raise error(f"{label}: '{tail(str(p))}' is over {max_bytes:,} bytes; at most that allowed")
+        raise error(
+            f"{label}: '{tail(str(p))}' is over {max_bytes:,} bytes; at most {max_bytes:,} "
+            "are allowed"
+        )
     return data
 
 
