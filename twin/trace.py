@@ -77,6 +77,16 @@ def trace_files(scenario: Scenario) -> list[Path]:
     return trace_paths(scenario.feeder.trace, scenario.source_dir)
 
 
+def trace_folders(scenario: Scenario) -> list[Path]:
+    """The folders ``feeder.trace`` names (each holds traces), resolved as its files are."""
+    if scenario.feeder.arrival != "trace" or not scenario.feeder.trace:
+        return []
+    trace = scenario.feeder.trace
+    names = [trace] if isinstance(trace, str) else list(trace)
+    paths = (resolve(str(name), scenario.source_dir) for name in names)
+    return [p for p in paths if p.is_dir()]
+
+
 def trace_paths(trace: str | Sequence[str], source_dir: str | Path | None) -> list[Path]:
     """The files ``feeder.trace`` names: a file, a list of files, or a folder whose ``*.csv``
     files (sorted by name) are the traces; a folder without one is refused naming it, and so

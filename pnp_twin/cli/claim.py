@@ -33,7 +33,7 @@ from pnp_twin.twin.output import (
     check_writable,
 )
 from pnp_twin.twin.scenario import Scenario
-from pnp_twin.twin.trace import trace_files
+from pnp_twin.twin.trace import trace_files, trace_folders
 
 Inputs = Mapping[str, str | Path | None]
 
@@ -47,24 +47,12 @@ def inputs_of(scenario: str | Path | None, sc: Scenario | None = None, **more: o
     if sc is not None:
         for i, path in enumerate(trace_files(sc)):
             out[f"trace {i + 1}" if i else "trace"] = path
-        folders = [p for p in map(Path, _trace_names(sc)) if _under(p, sc.source_dir).is_dir()]
-        for i, path in enumerate(folders):
-            out[f"trace folder {i + 1}" if i else "trace folder"] = _under(path, sc.source_dir)
+        for i, path in enumerate(trace_folders(sc)):
+            out[f"trace folder {i + 1}" if i else "trace folder"] = path
     for label, value in more.items():
         for i, path in enumerate(_paths(value)):
             out[f"{label} {i + 1}" if i else label] = path
     return out
-
-
-def _under(path: Path, source_dir: str | Path | None) -> Path:
-    return path if path.is_absolute() or not source_dir else Path(source_dir) / path
-
-
-def _trace_names(sc: Scenario) -> list[str]:
-    trace = sc.feeder.trace if sc.feeder.arrival == "trace" else None
-    if not trace:
-        return []
-    return [trace] if isinstance(trace, str) else [str(t) for t in trace]
 
 
 def _paths(value: object) -> list[Path]:
