@@ -31,6 +31,7 @@ from pnp_twin.twin.output import (
     check_not_inputs,
     check_out_folder,
     check_writable,
+    removed_if_refused,
 )
 from pnp_twin.twin.scenario import Scenario
 from pnp_twin.twin.trace import trace_files, trace_folders
@@ -113,15 +114,19 @@ def _legacy_evals(p: Path) -> bool:
 
 @contextmanager
 def claim_folder(
-    out: str | Path, kind: str, inputs: Inputs, option: str = "--out", lock: bool = True
+    out: str | Path,
+    kind: str,
+    inputs: Inputs,
+    option: str = "--out",
+    lock: bool = True,
+    legacy: Iterable[str] = (),
 ) -> Iterator[str]:
     """Check ``out`` (:func:`check_folder`), then hold it for the block: locked (unless
-    ``lock`` is False: the study journal locks it itself), its kind recorded, and removed
-    again if the block fails before writing a result. Yields the command line that asked."""
+    ``lock`` is False: the study journal or the trainer keeps its own), its kind recorded,
+    and removed again if the block fails before writing a result. Yields the command line."""
     from pnp_twin.studies.lock import StudyLock  # the study layer: only when a folder is held
-    from pnp_twin.twin.output import removed_if_refused
 
-    folder = check_folder(out, kind, inputs, option)
+    folder = check_folder(out, kind, inputs, option, legacy)
     command = shlex.join(["pnp-twin", *sys.argv[1:]])
     with removed_if_refused(folder):
         held = StudyLock(folder) if lock else None

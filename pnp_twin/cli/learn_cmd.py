@@ -23,15 +23,13 @@ from rich import box
 from rich.table import Table
 
 from pnp_twin.cli.app import INTERRUPTED, Engine, ScenarioArg, SetOpt, app, fail
-from pnp_twin.cli.claim import check_folder, inputs_of
+from pnp_twin.cli.claim import check_folder, claim_folder, inputs_of
 from pnp_twin.cli.console import stdout_console
 from pnp_twin.cli.train_progress import TrainProgress
 from pnp_twin.learning.envs.options import REWARD_WEIGHTS
 from pnp_twin.learning.train_args import TrainArgs, field_help
 from pnp_twin.parallel import BACKENDS, pool_map_ordered, ray_map
-from pnp_twin.twin.folder_kind import write_kind
 from pnp_twin.twin.loader import load_scenario, parse_sets
-from pnp_twin.twin.output import removed_if_refused
 from pnp_twin.twin.trace import check_replications
 
 TD_RULES = "FIFO,LIFO,SIRO,SD,LD,SPT"
@@ -238,8 +236,8 @@ def train_cmd(**kw: Any) -> None:
 
     resolve_device(args.device)  # a bad device is refused before the folder is made
     runs = [replace(args, seed=s) for s in range(args.seed, args.seed + kw["seeds"])]
-    with removed_if_refused(Path(kw["out"])):
-        write_kind(Path(kw["out"]), "train")  # checked above; a folder of training runs now
+    out, scenario = Path(kw["out"]), kw["scenario"]
+    with claim_folder(out, "train", inputs_of(scenario), lock=False, legacy=_run_names(out)):
         if len(runs) == 1:
             folders = [_train_with_progress(runs[0])]
         else:
@@ -252,10 +250,14 @@ def _check_train_out(out: Path, scenario: str) -> None:
     """``--out`` holds one folder per run (``<scenario>__<mode>__<seed>``): it must be new,
     empty or a folder of training runs (to add to or resume), and must not hold the
     scenario it trains on; checked before anything is written."""
-    runs: set[str] = set()
-    if out.is_dir():
-        runs = {e.name for e in out.iterdir() if e.is_dir() and e.name.count("__") >= 2}
-    check_folder(out, "train", inputs_of(scenario), legacy=runs)
+    check_folder(out, "train", inputs_of(scenario), legacy=_run_names(out))
+
+
+def _run_names(out: Path) -> set[str]:
+    """The training run folders (``<scenario>__<mode>__<seed>``) ``out`` already holds."""
+    if not out.is_dir():
+        return set()
+    return {e.name for e in out.iterdir() if e.is_dir() and e.name.count("__") >= 2}
 
 
 def _train_args(kw: dict[str, Any]) -> TrainArgs:
