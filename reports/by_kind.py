@@ -6,21 +6,16 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from pnp_twin.reports.load import read_json
 from pnp_twin.twin.folder_kind import folder_kind
 from pnp_twin.twin.output import write_text
 
 
-def _json(folder: Path, name: str) -> dict[str, Any]:
-    return read_json(folder / name)
-
-
 def _headroom(folder: Path, out: Path) -> Path:
     from pnp_twin.reports.headroom_report import headroom_html
 
-    return write_text(headroom_html(_json(folder, "headroom.json")), out)
+    return write_text(headroom_html(read_json(folder / "headroom.json")), out)
 
 
 def _tune(folder: Path, out: Path) -> Path:
@@ -28,7 +23,7 @@ def _tune(folder: Path, out: Path) -> Path:
 
     from pnp_twin.reports.tune_report import tune_html
 
-    data = _json(folder, "tune.json")
+    data = read_json(folder / "tune.json")
     trials = pd.read_csv(folder / "trials.csv").to_dict("records")
     return write_text(tune_html(data, trials), out)
 
