@@ -55,6 +55,20 @@ def test_every_getting_started_command_runs(
     assert time.perf_counter() - start < 120  # about 30 s on a 2-core machine
 
 
+@pytest.mark.timeout(300)
+def test_the_readme_tour_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The README's tour, as written: each command but the studies (``--out``: minutes each;
+    their scenarios are validated instead) runs and writes what it names."""
+    monkeypatch.chdir(tmp_path)
+    commands = page_commands(ROOT / "README.md")
+    assert {c[0] for c in commands} >= {"list", "run", "compare", "size", "sweep"}
+    for args in commands:
+        quick = "--out" not in args
+        result = CliRunner().invoke(app, args if quick else ["validate", args[1]])
+        assert result.exit_code == 0, (args, result.output[-2000:])
+    assert all(Path(f).stat().st_size > 0 for f in ("run.html", "line.gif", "cmp.html"))
+
+
 def test_the_reference_pages_are_up_to_date() -> None:
     spec = importlib.util.spec_from_file_location("make_reference", DOCS / "make_reference.py")
     assert spec is not None and spec.loader is not None
